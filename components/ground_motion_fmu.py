@@ -1,0 +1,67 @@
+"""FMI 2.0 co-simulation shell of the ground-motion source.
+
+Parameters: ``record`` (path of a ``time_s,accel_g`` CSV/text or PEER ``.AT2`` file),
+``scale`` (amplitude factor; the paper uses 0.5) and ``time_scale``. Output ``ag``
+[m/s^2] at the unit's current time: linear interpolation, zero after the record ends.
+The record is read when the unit enters initialization mode.
+"""
+
+from __future__ import annotations
+
+from ground_motion_core import GroundMotion, RecordError, read_record
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
+from pythonfmu.enums import Fmi2Status
+
+FMU_CORE_MODULES = ("ground_motion_core",)
+
+
+class GroundMotionSource(Fmi2Slave):
+    """Plays a ground-acceleration record."""
+
+    description = "Ground-acceleration record player (linear interpolation, zero after the end)"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.record = ""
+        self.scale = 1.0
+        self.time_scale = 1.0
+        self.duration = 0.0
+        self._time = 0.0
+        self._motion: GroundMotion | None = None
+        self.fmi_units = {"scale": "1", "time_scale": "1", "ag": "m/s2", "duration": "s"}
+        self.fmi_dependencies = {}
+        par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        self.register_variable(String("record", description="record file (time_s,accel_g CSV or PEER AT2)", **par))
+        self.register_variable(Real("scale", description="amplitude scale factor", **par))
+        self.register_variable(
+            Real("time_scale", description="time scale factor (record time to simulation time)", **par)
+        )
+        self.register_variable(
+            Real("duration", description="simulation time at which the record ends",
+                 causality=Fmi2Causality.calculatedParameter, variability=Fmi2Variability.fixed)
+        )
+        self.register_variable(
+            Real("ag", description="ground acceleration", causality=Fmi2Causality.output,
+                 variability=Fmi2Variability.continuous, getter=self._acceleration)
+        )
+
+    def _acceleration(self) -> float:
+        return 0.0 if self._motion is None else self._motion.acceleration(self._time)
+
+    def setup_experiment(self, start_time, stop_time, tolerance):
+        self._time = start_time
+
+    def enter_initialization_mode(self):
+        if not self.record:
+            self.log("parameter 'record' is not set: name a record file", Fmi2Status.error)
+            raise ValueError("no record file")
+        try:
+            self._motion = GroundMotion(read_record(self.record), self.scale, self.time_scale)
+        except (RecordError, ValueError) as exc:
+            self.log(f"cannot use the ground-motion record: {exc}", Fmi2Status.error)
+            raise
+        self.duration = self._motion.duration
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        self._time = current_time + step_size
+        return True

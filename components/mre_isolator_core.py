@@ -1,0 +1,163 @@
+"""Physics of the MRE base isolator: the hyperbolic hysteresis model of the paper.
+
+The paper states its laws in millimetres, mm/s and newtons (Eq. 3-5, 13-17, Tables 1-2).
+Everything in this module is SI (m, m/s, N, A); the conversion from the paper's units
+happens once, in :meth:`HyperbolicParams.from_paper_units` and
+:meth:`GeneralizedCoefficients.from_paper_units`.
+
+Per device (Eq. 3-4 with z = sinh(beta x)):
+
+    F = c0 * v + k0 * x + alpha * sinh(beta * x) + F0
+
+Current-dependent generalized model (Eq. 13-17): every parameter is linear in the
+current i, p(i) = p_slope * i + p_intercept (the paper's p^0 and p^1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+MM = 1e-3  # metres per millimetre
+
+
+@dataclass(frozen=True)
+class HyperbolicParams:
+    """Parameters of one device at one current, SI units.
+
+    c0 [N*s/m], k0 [N/m], alpha [N], beta [1/m], F0 [N].
+    """
+
+    c0: float
+    k0: float
+    alpha: float
+    beta: float
+    F0: float = 0.0
+
+    @classmethod
+    def from_paper_units(
+        cls, c0: float, k0: float, alpha: float, beta: float, F0: float = 0.0
+    ) -> HyperbolicParams:
+        """From the paper's units: c0 [N*s/mm], k0 [N/mm], alpha [N], beta [1/mm], F0 [N]."""
+        return cls(c0=c0 / MM, k0=k0 / MM, alpha=alpha, beta=beta / MM, F0=F0)
+
+    def to_paper_units(self) -> dict[str, float]:
+        """The same parameters in the paper's units (Table 1 layout)."""
+        return {
+            "c0": self.c0 * MM,
+            "k0": self.k0 * MM,
+            "alpha": self.alpha,
+            "beta": self.beta * MM,
+            "F0": self.F0,
+        }
+
+
+def safe_sinh(z: float) -> float:
+    """sinh(z), or +-inf where it overflows a double (|z| > ~710), instead of raising."""
+    try:
+        return math.sinh(z)
+    except OverflowError:
+        return math.copysign(math.inf, z)
+
+
+def safe_cosh(z: float) -> float:
+    """cosh(z), or +inf where it overflows a double."""
+    try:
+        return math.cosh(z)
+    except OverflowError:
+        return math.inf
+
+
+def hyperbolic_force(x: float, v: float, p: HyperbolicParams) -> float:
+    """Force of one device [N] at displacement x [m] and velocity v [m/s] (Eq. 3-4)."""
+    return p.c0 * v + p.k0 * x + p.alpha * safe_sinh(p.beta * x) + p.F0
+
+
+@dataclass(frozen=True)
+class GeneralizedCoefficients:
+    """Coefficients of the current-dependent model, Eq. (13)-(16), SI units.
+
+    ``*_0`` is the slope per ampere (the paper's superscript 0), ``*_1`` the value at
+    0 A (superscript 1): k0(i) = k0_0 * i + k0_1 and so on.
+    k0_0 [N/(m*A)], k0_1 [N/m], c0_0 [N*s/(m*A)], c0_1 [N*s/m], alpha_0 [N/A],
+    alpha_1 [N], beta_0 [1/(m*A)], beta_1 [1/m].
+    """
+
+    k0_0: float
+    k0_1: float
+    c0_0: float
+    c0_1: float
+    alpha_0: float
+    alpha_1: float
+    beta_0: float
+    beta_1: float
+
+    @classmethod
+    def from_paper_units(cls, **paper: float) -> GeneralizedCoefficients:
+        """From Table 2 units: k0 in N/mm, c0 in N*s/mm, alpha in N, beta in 1/mm."""
+        per_mm = {"k0_0", "k0_1", "c0_0", "c0_1", "beta_0", "beta_1"}
+        return cls(**{k: (v / MM if k in per_mm else v) for k, v in paper.items()})
+
+    def at_current(self, i: float, F0: float = 0.0) -> HyperbolicParams:
+        """Device parameters at current i [A] (Eq. 13-16)."""
+        return HyperbolicParams(
+            c0=self.c0_0 * i + self.c0_1,
+            k0=self.k0_0 * i + self.k0_1,
+            alpha=self.alpha_0 * i + self.alpha_1,
+            beta=self.beta_0 * i + self.beta_1,
+            F0=F0,
+        )
+
+    def as_dict(self) -> dict[str, float]:
+        """Coefficient name -> SI value."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+# Table 2 of the paper, in its units (N/mm, N*s/mm, N, 1/mm).
+TABLE2_PAPER_UNITS: dict[str, float] = {
+    "k0_0": 5.8161,
+    "k0_1": 3.3431,
+    "c0_0": 0.5767,
+    "c0_1": 0.3396,
+    "alpha_0": 4.9810,
+    "alpha_1": 8.1100,
+    "beta_0": 0.1322,
+    "beta_1": 0.3463,
+}
+
+TABLE2 = GeneralizedCoefficients.from_paper_units(**TABLE2_PAPER_UNITS)
+
+# Device limits stated in the paper (section 2): identified on +-8 mm, 15 mm maximum.
+IDENTIFIED_RANGE_M = 8.0 * MM
+DEVICE_LIMIT_M = 15.0 * MM
+CURRENT_MAX_A = 3.0
+
+
+def isolator_force(
+    x: float,
+    v: float,
+    i: float,
+    coeffs: GeneralizedCoefficients = TABLE2,
+    F0: float = 0.0,
+    n_isolators: int = 2,
+) -> float:
+    """Total force [N] of ``n_isolators`` identical devices, Eq. (17).
+
+    x [m] and v [m/s] are the isolator displacement and velocity, i [A] the current.
+    The force is the restoring force: positive in the direction of x.
+    """
+    c0 = coeffs.c0_0 * i + coeffs.c0_1
+    k0 = coeffs.k0_0 * i + coeffs.k0_1
+    alpha = coeffs.alpha_0 * i + coeffs.alpha_1
+    beta = coeffs.beta_0 * i + coeffs.beta_1
+    return n_isolators * (c0 * v + k0 * x + alpha * safe_sinh(beta * x) + F0)
+
+
+def isolator_stiffness(
+    x: float, i: float, coeffs: GeneralizedCoefficients = TABLE2, n_isolators: int = 2
+) -> float:
+    """Tangent stiffness dF/dx [N/m] of ``n_isolators`` devices at x [m], i [A]."""
+    alpha = coeffs.alpha_0 * i + coeffs.alpha_1
+    beta = coeffs.beta_0 * i + coeffs.beta_1
+    k0 = coeffs.k0_0 * i + coeffs.k0_1
+    return n_isolators * (k0 + alpha * beta * safe_cosh(beta * x))

@@ -1,0 +1,141 @@
+"""FMI 2.0 co-simulation shell of the MRE isolator (generalized hyperbolic model, Eq. 17).
+
+Inputs x [m], v [m/s], i [A]; output F [N], the total restoring force of
+``n_isolators`` devices. F is direct feedthrough: it is evaluated from the inputs set
+at the current communication point whenever it is read. The unit has no state.
+
+Range policy: |x| beyond the identified +-8 mm range and beyond the device's 15 mm
+limit each log one fmi2Warning when entered; a current outside [0, i_max] logs an
+fmi2Warning when entered and is clipped to [0, i_max] before it enters the law.
+Non-finite inputs make ``fmi2DoStep`` fail with fmi2Error and a logged message.
+"""
+
+from __future__ import annotations
+
+import math
+
+from mre_isolator_core import (
+    CURRENT_MAX_A,
+    DEVICE_LIMIT_M,
+    IDENTIFIED_RANGE_M,
+    TABLE2,
+    GeneralizedCoefficients,
+    isolator_force,
+)
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.enums import Fmi2Status
+
+FMU_CORE_MODULES = ("mre_isolator_core",)
+
+_COEFFICIENTS = {
+    "k0_0": ("N/(m.A)", "stiffness k0 slope per ampere (Table 2 k0^0)"),
+    "k0_1": ("N/m", "stiffness k0 at 0 A (Table 2 k0^1)"),
+    "c0_0": ("N.s/(m.A)", "damping c0 slope per ampere (Table 2 c0^0)"),
+    "c0_1": ("N.s/m", "damping c0 at 0 A (Table 2 c0^1)"),
+    "alpha_0": ("N/A", "sinh-spring scale alpha slope per ampere (Table 2 alpha^0)"),
+    "alpha_1": ("N", "sinh-spring scale alpha at 0 A (Table 2 alpha^1)"),
+    "beta_0": ("1/(m.A)", "sinh-spring shape beta slope per ampere (Table 2 beta^0)"),
+    "beta_1": ("1/m", "sinh-spring shape beta at 0 A (Table 2 beta^1)"),
+}
+
+
+class MreIsolator(Fmi2Slave):
+    """MRE base isolator, generalized current-dependent hyperbolic model (SI units)."""
+
+    description = "MRE base isolator: F = n*(c0(i) v + k0(i) x + alpha(i) sinh(beta(i) x) + F0)"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.x = 0.0
+        self.v = 0.0
+        self.i = 0.0
+        self.F0 = 0.0
+        self.n_isolators = 2
+        self.i_max = CURRENT_MAX_A
+        self.x_identified = IDENTIFIED_RANGE_M
+        self.x_limit = DEVICE_LIMIT_M
+        for name, value in TABLE2.as_dict().items():
+            setattr(self, name, value)
+        self._outside = {"identified": False, "limit": False, "current": False}
+        self._coeffs: GeneralizedCoefficients | None = None
+        self._initialized = False
+
+        self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
+        self.fmi_units.update(
+            x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m"
+        )
+        self.fmi_dependencies = {"F": ("x", "v", "i")}
+
+        inp = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
+        self.register_variable(Real("x", description="isolator displacement", **inp))
+        self.register_variable(Real("v", description="isolator velocity", **inp))
+        self.register_variable(Real("i", description="commanded current", **inp))
+        par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+        for name, (_, text) in _COEFFICIENTS.items():
+            self.register_variable(Real(name, description=text, **par))
+        self.register_variable(Real("F0", description="force offset per device", **par))
+        self.register_variable(
+            Integer("n_isolators", description="number of identical devices in parallel", **par)
+        )
+        self.register_variable(Real("i_max", description="largest admissible current", **par))
+        self.register_variable(
+            Real("x_identified", description="displacement range the model was identified on", **par)
+        )
+        self.register_variable(Real("x_limit", description="device displacement limit", **par))
+        self.register_variable(
+            Real(
+                "F",
+                description="total isolator restoring force (acts on the base against x)",
+                causality=Fmi2Causality.output,
+                variability=Fmi2Variability.continuous,
+                getter=self._force,
+            )
+        )
+
+    def _current(self) -> float:
+        return min(max(self.i, 0.0), self.i_max)
+
+    def _coefficients(self) -> GeneralizedCoefficients:
+        # Parameters may change until initialization ends; afterwards they are fixed.
+        if self._coeffs is None or not self._initialized:
+            self._coeffs = GeneralizedCoefficients(**{name: getattr(self, name) for name in _COEFFICIENTS})
+        return self._coeffs
+
+    def _force(self) -> float:
+        return isolator_force(self.x, self.v, self._current(), self._coefficients(), self.F0, self.n_isolators)
+
+    def exit_initialization_mode(self):
+        self._initialized = False
+        self._coefficients()
+        self._initialized = True
+
+    def _warn_on_entry(self, key: str, outside: bool, message: str) -> None:
+        if outside and not self._outside[key]:
+            self.log(message, Fmi2Status.warning)
+        self._outside[key] = outside
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        for name in ("x", "v", "i"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                self.log(f"input {name} = {value} is not finite at t = {current_time:.6g} s", Fmi2Status.error)
+                return False
+        t = current_time
+        ax = abs(self.x)
+        self._warn_on_entry(
+            "identified",
+            ax > self.x_identified,
+            f"|x| = {ax * 1e3:.3g} mm left the identified range "
+            f"{self.x_identified * 1e3:.3g} mm at t = {t:.6g} s: the model is extrapolated",
+        )
+        self._warn_on_entry(
+            "limit",
+            ax > self.x_limit,
+            f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
+        )
+        self._warn_on_entry(
+            "current",
+            not 0.0 <= self.i <= self.i_max,
+            f"current i = {self.i:.4g} A left [0, {self.i_max:.4g}] A at t = {t:.6g} s: clipped",
+        )
+        return True

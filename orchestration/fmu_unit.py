@@ -1,0 +1,300 @@
+"""FMI 2.0 co-simulation units through fmpy, and reading their model descriptions.
+
+FMI status codes become :class:`~orchestration.errors.UnitCallError` here and nowhere
+else (:meth:`FmuUnit._check`). The hot path (get, set, step) calls the FMU's C functions
+through fmpy's ctypes bindings with value-reference and value arrays prepared once.
+"""
+
+from __future__ import annotations
+
+import itertools
+import shutil
+import weakref
+import zipfile
+from collections.abc import Callable, Sequence
+from ctypes import byref, c_double, c_uint, c_void_p
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestration.errors import SimulationError, UnitCallError
+from orchestration.unit import UnitDescription, Variable
+
+_STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+# fmpy's native logger proxy (it formats printf-style messages) keeps ONE target function
+# for the whole process, so all units share one Python logger; it dispatches each message
+# to its unit through the componentEnvironment pointer the unit passed at instantiation.
+_LOG_TARGETS: dict[int, weakref.ref] = {}
+_ENV_KEYS = itertools.count(1)
+_CALLBACKS = None
+
+
+def _dispatch_log(env, instance, status, category, message) -> None:
+    ref = _LOG_TARGETS.get(env or 0)
+    unit = ref() if ref is not None else None
+    if unit is not None:
+        unit._receive_log(status, category, message)
+
+
+def _shared_callbacks():
+    global _CALLBACKS
+    if _CALLBACKS is None:
+        from fmpy.fmi2 import (
+            calloc,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+            free,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(_dispatch_log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        _CALLBACKS = callbacks
+    return _CALLBACKS
+
+
+class FmuFormatError(ValueError):
+    """A file that is not a usable FMI 2.0 co-simulation FMU."""
+
+
+def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
+    """The interface of the FMU at ``path`` (no binary is loaded) and fmpy's model description."""
+    from fmpy import read_model_description
+
+    path = Path(path)
+    if not path.is_file():
+        raise FmuFormatError(f"{path}: no such FMU file")
+    if not zipfile.is_zipfile(path):
+        raise FmuFormatError(f"{path}: not an FMU (not a zip archive)")
+    with zipfile.ZipFile(path) as z:
+        if "modelDescription.xml" not in z.namelist():
+            raise FmuFormatError(f"{path}: not an FMU (the zip has no modelDescription.xml)")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as exc:  # fmpy raises several kinds for broken XML
+        raise FmuFormatError(f"{path}: unreadable modelDescription.xml: {exc}") from None
+    if md.fmiVersion != "2.0":
+        raise FmuFormatError(f"{path}: FMI {md.fmiVersion} FMU; this master runs FMI 2.0 co-simulation FMUs")
+    if md.coSimulation is None:
+        raise FmuFormatError(f"{path}: model-exchange-only FMU; this master needs co-simulation")
+    variables = {}
+    for v in md.modelVariables:
+        variables[v.name] = Variable(
+            name=v.name,
+            vr=v.valueReference,
+            type=v.type,
+            causality=v.causality,
+            variability=v.variability,
+            unit=v.unit or (v.declaredType.unit if v.declaredType is not None else None),
+            start=v.start,
+            description=v.description or "",
+        )
+    deps: dict[str, tuple[str, ...] | None] = {}
+    for out in md.outputs:
+        deps[out.variable.name] = (
+            None if out.dependencies is None else tuple(d.name for d in out.dependencies if d.causality == "input")
+        )
+    desc = UnitDescription(name, variables, deps, md.coSimulation.modelIdentifier, md.fmiVersion)
+    return desc, md
+
+
+@dataclass
+class _Handle:
+    vrs: Any
+    buf: Any
+    view: np.ndarray
+    n: int
+
+
+@dataclass(frozen=True)
+class LogRecord:
+    """One message an FMU logged."""
+
+    status: str
+    category: str
+    message: str
+
+
+class FmuUnit:
+    """An FMI 2.0 co-simulation FMU driven through fmpy."""
+
+    def __init__(
+        self,
+        name: str,
+        path: Path,
+        parameters: dict[str, Any] | None = None,
+        on_log: Callable[[str, LogRecord], None] | None = None,
+    ) -> None:
+        self.name = name
+        self.path = Path(path)
+        self.description, self._md = read_description(self.path, name)
+        self.parameters = dict(parameters or {})
+        self.log: list[LogRecord] = []
+        self.warnings = 0
+        self._on_log = on_log
+        self._fmu = None
+        self._dir: str | None = None
+        self._time: float | None = None
+        self._instantiated = False
+        self._initialized = False
+        self._callbacks = None
+        self._f: dict[str, Any] = {}
+
+    # -- FMI status translation: the only place -------------------------------------------------
+    def _check(self, function: str, status: int) -> None:
+        if status > 1:
+            label = _STATUS[status] if 0 <= status < len(_STATUS) else f"illegal status {status}"
+            recent = tuple(f"[{r.status}] {r.message}" for r in self.log[-5:] if r.status != "ok")
+            raise UnitCallError(self.name, function, label, self._time, recent)
+
+    def _call(self, function: str, *args: Any) -> None:
+        self._check(function, self._f[function](self._fmu.component, *args))
+
+    # -- logging --------------------------------------------------------------------------------
+    def _receive_log(self, status, category, message) -> None:
+        label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+        record = LogRecord(
+            label,
+            category.decode("utf-8", "replace") if category else "",
+            message.decode("utf-8", "replace") if message else "",
+        )
+        self.log.append(record)
+        if status == 1:
+            self.warnings += 1
+        if self._on_log is not None:
+            self._on_log(self.name, record)
+
+    def _make_callbacks(self):
+        callbacks = _shared_callbacks()
+        self._env_key = next(_ENV_KEYS)
+        _LOG_TARGETS[self._env_key] = weakref.ref(self)
+        # A copy of the shared struct whose componentEnvironment identifies this unit.
+        from fmpy.fmi2 import fmi2CallbackFunctions
+
+        own = fmi2CallbackFunctions()
+        own.logger = callbacks.logger
+        own.allocateMemory = callbacks.allocateMemory
+        own.freeMemory = callbacks.freeMemory
+        own.componentEnvironment = c_void_p(self._env_key)
+        return own
+
+    # -- Unit interface --------------------------------------------------------------------------
+    def setup(self, start_time: float, stop_time: float) -> None:
+        """Extract, load, instantiate, apply parameters, set up the experiment, enter initialization."""
+        from fmpy import extract
+        from fmpy.fmi2 import FMU2Slave
+
+        self._time = start_time
+        try:
+            self._dir = extract(str(self.path))
+            self._fmu = FMU2Slave(
+                guid=self._md.guid,
+                unzipDirectory=self._dir,
+                modelIdentifier=self._md.coSimulation.modelIdentifier,
+                instanceName=self.name,
+            )
+        except Exception as exc:
+            raise SimulationError(f"cannot load FMU {self.path}: {exc}", unit=self.name, time=start_time) from exc
+        self._f = self._fmu._functions
+        self._callbacks = self._make_callbacks()
+        try:
+            self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        except Exception as exc:
+            raise SimulationError(f"fmi2Instantiate failed: {exc}", unit=self.name, time=start_time) from exc
+        self._instantiated = True
+        for name, value in self.parameters.items():
+            self._set_parameter(name, value)
+        self._call("fmi2SetupExperiment", 0, 0.0, start_time, 1, stop_time)
+        self._call("fmi2EnterInitializationMode")
+
+    def _set_parameter(self, name: str, value: Any) -> None:
+        var = self.description.variables[name]
+        vr = (c_uint * 1)(var.vr)
+        try:
+            if var.type == "Real":
+                self._call("fmi2SetReal", vr, 1, (c_double * 1)(float(value)))
+            elif var.type in ("Integer", "Enumeration"):
+                self._call("fmi2SetInteger", vr, 1, (self._int_type() * 1)(int(value)))
+            elif var.type == "Boolean":
+                self._call("fmi2SetBoolean", vr, 1, (self._int_type() * 1)(1 if value else 0))
+            else:
+                from fmpy.fmi2 import fmi2String
+
+                self._call("fmi2SetString", vr, 1, (fmi2String * 1)(str(value).encode("utf-8")))
+        except UnitCallError as exc:
+            raise SimulationError(
+                f"setting parameter to {value!r} failed: {exc.reason}", self.name, name, self._time, exc.details
+            ) from None
+
+    @staticmethod
+    def _int_type():
+        from fmpy.fmi2 import fmi2Integer
+
+        return fmi2Integer
+
+    def exit_initialization(self) -> None:
+        self._call("fmi2ExitInitializationMode")
+        self._initialized = True
+
+    def prepare(self, refs: Sequence[int]) -> _Handle:
+        n = len(refs)
+        buf = (c_double * max(n, 1))()
+        return _Handle((c_uint * max(n, 1))(*refs), buf, np.ctypeslib.as_array(buf)[:n], n)
+
+    def get_real(self, handle: _Handle) -> np.ndarray:
+        self._check("fmi2GetReal", self._f["fmi2GetReal"](self._fmu.component, handle.vrs, handle.n, handle.buf))
+        return handle.view
+
+    def set_real(self, handle: _Handle, values: np.ndarray) -> None:
+        handle.view[:] = values
+        self._check("fmi2SetReal", self._f["fmi2SetReal"](self._fmu.component, handle.vrs, handle.n, handle.buf))
+
+    def step(self, t: float, h: float) -> None:
+        self._time = t
+        self._check("fmi2DoStep", self._f["fmi2DoStep"](self._fmu.component, t, h, 1))
+        self._time = t + h
+
+    def get_values(self, names: Sequence[str]) -> dict[str, Any]:
+        """Values of variables of any type by name (slow path, for parameters and checks)."""
+        out = {}
+        for name in names:
+            var = self.description.variables[name]
+            getter = {"Real": self._fmu.getReal, "Integer": self._fmu.getInteger,
+                      "Boolean": self._fmu.getBoolean, "String": self._fmu.getString}[var.type]
+            out[name] = getter([var.vr])[0]
+        return out
+
+    def terminate(self) -> None:
+        """Terminate (if initialized), free the instance and the extracted files; never raises."""
+        fmu, self._fmu = self._fmu, None
+        try:
+            if fmu is not None and self._instantiated:
+                if self._initialized:
+                    try:
+                        fmu.fmi2Terminate(fmu.component)
+                    except Exception:  # a failed unit may refuse to terminate; free it anyway
+                        pass
+                fmu.fmi2FreeInstance(fmu.component)
+            if fmu is not None:
+                fmu.freeLibrary()
+        except Exception:
+            pass
+        finally:
+            self._instantiated = self._initialized = False
+            _LOG_TARGETS.pop(getattr(self, "_env_key", 0), None)
+            if self._dir is not None:
+                shutil.rmtree(self._dir, ignore_errors=True)
+                self._dir = None
+
+    @property
+    def freed(self) -> bool:
+        """True once the unit holds no FMU instance and no extracted files."""
+        return self._fmu is None and self._dir is None

@@ -1,0 +1,32 @@
+"""Shared fixtures: FMUs built once per test session into a temporary folder, record paths."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+PROJECT = Path(__file__).resolve().parent.parent
+if str(PROJECT) not in sys.path:
+    sys.path.insert(0, str(PROJECT))
+
+SHARED_RECORDS = PROJECT.parent / "shared" / "ground_motions"
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory) -> Path:
+    """All project FMUs, freshly built into a temporary folder."""
+    from components.build import ensure_built
+
+    dest = tmp_path_factory.mktemp("fmus")
+    ensure_built(dest, force=True)
+    return dest
+
+
+@pytest.fixture(scope="session")
+def elcentro() -> Path:
+    path = SHARED_RECORDS / "elcentro_1940_ns.csv"
+    if not path.is_file():
+        pytest.skip(f"ground-motion record not found: {path}")
+    return path

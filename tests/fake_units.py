@@ -1,0 +1,95 @@
+"""Fake units for testing the master without FMUs: plain Python behind the Unit interface."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from orchestration.unit import UnitDescription, Variable
+
+
+class FakeUnit:
+    """A unit with named real inputs/outputs. ``outputs_fn(state, inputs)`` gives the outputs,
+    ``step_fn(state, inputs, t, h)`` returns the new state. Every call is appended to ``calls``."""
+
+    def __init__(
+        self,
+        name: str,
+        inputs: Sequence[str],
+        outputs: Sequence[str],
+        outputs_fn: Callable[[dict, dict], dict],
+        step_fn: Callable[[dict, dict, float, float], dict] | None = None,
+        dependencies: dict[str, tuple[str, ...] | None] | None = None,
+        state: dict | None = None,
+        calls: list | None = None,
+        fail_at: float | None = None,
+    ) -> None:
+        self.name = name
+        variables = {}
+        for k, n in enumerate(inputs):
+            variables[n] = Variable(n, k, "Real", "input", "continuous", None, 0.0)
+        for k, n in enumerate(outputs, start=len(inputs)):
+            variables[n] = Variable(n, k, "Real", "output", "continuous")
+        deps = dependencies if dependencies is not None else {o: () for o in outputs}
+        self.description = UnitDescription(name, variables, deps)
+        self._by_vr = {v.vr: v.name for v in variables.values()}
+        self.inputs = dict.fromkeys(inputs, 0.0)
+        self.state = dict(state or {})
+        self._outputs_fn = outputs_fn
+        self._step_fn = step_fn
+        self.calls = calls if calls is not None else []
+        self.fail_at = fail_at
+        self.terminated = 0
+        self.initialized = False
+
+    def setup(self, start_time: float, stop_time: float) -> None:
+        self.calls.append(("setup", self.name, start_time))
+
+    def exit_initialization(self) -> None:
+        self.initialized = True
+        self.calls.append(("exit_init", self.name))
+
+    def prepare(self, refs):
+        return tuple(refs)
+
+    def get_real(self, handle) -> np.ndarray:
+        out = self._outputs_fn(self.state, self.inputs)
+        self.calls.append(("get", self.name, tuple(self._by_vr[r] for r in handle)))
+        return np.array([out[self._by_vr[r]] for r in handle], dtype=float)
+
+    def set_real(self, handle, values) -> None:
+        for r, v in zip(handle, values, strict=True):
+            self.inputs[self._by_vr[r]] = float(v)
+        self.calls.append(("set", self.name, tuple(self._by_vr[r] for r in handle)))
+
+    def step(self, t: float, h: float) -> None:
+        from orchestration.errors import SimulationError
+
+        self.calls.append(("step", self.name, t, h))
+        if self.fail_at is not None and t >= self.fail_at:
+            raise SimulationError("fake failure", unit=self.name, time=t)
+        if self._step_fn is not None:
+            self.state = self._step_fn(self.state, dict(self.inputs), t, h)
+
+    def terminate(self) -> None:
+        self.terminated += 1
+        self.calls.append(("terminate", self.name))
+
+
+def clock(name: str = "clock", calls: list | None = None, fail_at: float | None = None) -> FakeUnit:
+    """Output y = its own time (a state: no inputs)."""
+    return FakeUnit(name, [], ["y"], lambda s, i: {"y": s["t"]},
+                    lambda s, i, t, h: {"t": t + h}, state={"t": 0.0}, calls=calls, fail_at=fail_at)
+
+
+def sampler(name: str = "sampler", calls: list | None = None) -> FakeUnit:
+    """Holds the input it saw at its last step: output z = u at step start (a state)."""
+    return FakeUnit(name, ["u"], ["z"], lambda s, i: {"z": s["z"]},
+                    lambda s, i, t, h: {"z": i["u"]}, state={"z": -1.0}, calls=calls)
+
+
+def gain(name: str = "gain", k: float = 2.0, calls: list | None = None) -> FakeUnit:
+    """Direct feedthrough: w = k * u."""
+    return FakeUnit(name, ["u"], ["w"], lambda s, i: {"w": k * i["u"]},
+                    dependencies={"w": ("u",)}, calls=calls)

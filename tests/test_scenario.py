@@ -1,0 +1,208 @@
+"""Scenario files: typed parsing, every problem at once with file, line and key; data path; checks."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from orchestration.datapath import ENV_VAR, find_data_file
+from orchestration.errors import ScenarioError
+from orchestration.scenario import load_scenario
+from orchestration.system import resolve
+from orchestration.yaml_source import DataFile
+
+from .conftest import PROJECT
+
+SCENARIOS = PROJECT / "scenarios"
+
+
+def write(tmp_path: Path, text: str, name: str = "s.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def problems_of(path: Path, overrides=()) -> list[str]:
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(path, tuple(overrides))
+    return [str(p) for p in err.value.problems]
+
+
+def test_shipped_scenario_extends_the_system():
+    loaded = load_scenario(SCENARIOS / "kobe.yaml")
+    sc = loaded.scenario
+    assert sc.name == "kobe"
+    assert list(sc.units) == ["ground", "building", "isolator", "controller"]
+    assert sc.units["ground"].parameters == {"scale": 0.5, "record": DataFile("kobe_1995_jma_ns.csv")}
+    assert sc.simulation.step == 0.001 and sc.simulation.stop_time == 150.0 and sc.simulation.n_steps == 150_000
+    assert str(sc.connections[4]) == "isolator.F -> building.F"
+
+
+def test_overrides_set_unit_parameters_and_keys():
+    loaded = load_scenario(SCENARIOS / "elcentro.yaml",
+                           ("controller.mode=passive", "controller.i_passive=3", "simulation.stop_time=2"))
+    sc = loaded.scenario
+    assert sc.units["controller"].parameters == {"mode": "passive", "i_passive": 3}
+    assert sc.simulation.stop_time == 2
+
+
+def test_every_problem_is_reported_with_file_line_and_key(tmp_path):
+    path = write(tmp_path, """\
+        name: bad
+        units:
+          a:
+            fmu: a.fmu
+            colour: red
+        connections:
+          - a.y -> b.u
+        simulation:
+          step: fast
+          stop_time: 1.0
+        outputs: [a.y]
+        surprise: 1
+        """)
+    found = problems_of(path)
+    text = "\n".join(found)
+    assert f"{path}:5: units.a.colour: unknown key" in text
+    assert f"{path}:9: simulation.step: Input should be a valid number" in text
+    assert f"{path}:12: surprise: unknown key" in text
+    assert len(found) == 3
+
+
+def test_missing_fields(tmp_path):
+    path = write(tmp_path, "units:\n  a:\n    parameters: {}\n")
+    text = "\n".join(problems_of(path))
+    assert "units.a.fmu: required key is missing" in text
+    assert "simulation: required key is missing" in text
+
+
+@pytest.mark.parametrize(
+    ("sim", "message"),
+    [("step: 0.0\n  stop_time: 1.0", "greater than 0"),
+     ("step: 2.0\n  stop_time: 1.0", "larger than the simulated span"),
+     ("step: 0.3\n  stop_time: 1.0", "not a whole number of steps"),
+     ("step: 0.1\n  stop_time: -1.0", "must be after start_time")],
+)
+def test_time_grid_problems(tmp_path, sim, message):
+    path = write(tmp_path, f"units:\n  a: {{fmu: a.fmu}}\nsimulation:\n  {sim}\n")
+    assert any(message in p for p in problems_of(path))
+
+
+def test_duplicate_keys_and_bad_yaml(tmp_path):
+    dup = write(tmp_path, "units: {}\nunits: {}\n")
+    assert any(":2: units: duplicate key" in p for p in problems_of(dup))
+    broken = write(tmp_path, "units: [\n", "b.yaml")
+    assert any("not valid YAML" in p for p in problems_of(broken))
+
+
+def test_bad_override_value_type_is_named(tmp_path):
+    found = problems_of(SCENARIOS / "elcentro.yaml", ["simulation.step=[1, 2]"])
+    assert any("--set simulation.step=[1, 2]" in p and "simulation.step" in p for p in found)
+
+
+def test_extends_loop_is_an_error(tmp_path):
+    write(tmp_path, "extends: b.yaml\n", "a.yaml")
+    write(tmp_path, "extends: a.yaml\n", "b.yaml")
+    assert any("'extends' loops" in p for p in problems_of(tmp_path / "a.yaml"))
+
+
+def test_data_path_order_and_missing_file(tmp_path, monkeypatch):
+    first, second = tmp_path / "first", tmp_path / "second"
+    first.mkdir()
+    second.mkdir()
+    (first / "r.csv").write_text("0,0\n1,1\n")
+    (second / "r.csv").write_text("0,0\n1,1\n")
+    (second / "only2.csv").write_text("0,0\n1,1\n")
+    monkeypatch.setenv(ENV_VAR, str(second))
+    assert find_data_file("r.csv", (first,)) == (first / "r.csv").resolve()
+    assert find_data_file("only2.csv", (first,)) == (second / "only2.csv").resolve()
+    with pytest.raises(FileNotFoundError) as err:
+        find_data_file("nothere.csv", (first,))
+    text = str(err.value)
+    assert str(first / "nothere.csv") in text and str(second / "nothere.csv") in text and "ground_motions" in text
+
+
+def system_yaml(fmu_dir: Path, extra: str = "", connections: str | None = None) -> str:
+    conns = connections if connections is not None else """
+          - ground.ag -> building.ag
+          - building.x_0 -> isolator.x
+          - building.v_0 -> isolator.v
+          - isolator.F -> building.F"""
+    return textwrap.dedent(f"""\
+        units:
+          ground:
+            fmu: {fmu_dir}/GroundMotionSource.fmu
+            parameters: {{record: !data elcentro_1940_ns.csv, scale: 0.5}}
+          building:
+            fmu: {fmu_dir}/ShearBuilding.fmu
+          isolator:
+            fmu: {fmu_dir}/MreIsolator.fmu
+        connections:{textwrap.indent(textwrap.dedent(conns), "          ")}
+        simulation: {{step: 0.001, stop_time: 0.01}}
+        """) + textwrap.dedent(extra)
+
+
+def resolve_problems(path: Path) -> list[str]:
+    with pytest.raises(ScenarioError) as err:
+        resolve(load_scenario(path), build=False)
+    return [str(p) for p in err.value.problems]
+
+
+def test_a_valid_system_resolves(fmu_dir, tmp_path, elcentro):
+    plan = resolve(load_scenario(write(tmp_path, system_yaml(fmu_dir))), build=False)
+    assert plan.parameters["ground"]["record"] == str(elcentro.resolve())
+    assert len(plan.links) == 4
+
+
+def test_connection_problems_are_all_reported(fmu_dir, tmp_path):
+    conns = """
+        - ground.ag -> building.ag
+        - building.x_0 -> isolator.nope
+        - building.v_0 -> isolator.F
+        - ground.ag -> isolator.v
+        - isolator.F -> building.F
+        - isolator.F -> building.F
+        - ghost.y -> building.ag"""
+    text = "\n".join(resolve_problems(write(tmp_path, system_yaml(fmu_dir, connections=conns))))
+    assert "connections[1]: isolator (MreIsolator) has no variable 'nope'" in text
+    assert "connections[2]: isolator.F is output, expected input" in text
+    assert "connections[3]: unit mismatch: ground.ag is in m/s2, isolator.v in m/s" in text
+    assert "connections[5]: building.F is already driven by connections[4]" in text
+    assert "connections[6]: no unit named 'ghost'" in text
+
+
+def test_parameter_problems(fmu_dir, tmp_path):
+    extra = """\
+        outputs: [building.x_9]
+        limits: {max_abs: {building.x_0: 0.1}}
+        """
+    text = system_yaml(fmu_dir, extra).replace("scale: 0.5", "scale: fast, n_storeys: 3")
+    found = "\n".join(resolve_problems(write(tmp_path, text)))
+    assert "units.ground.parameters.scale: 'scale' is Real [1], got 'fast'" in found
+    assert "units.ground.parameters.n_storeys: GroundMotionSource has no variable 'n_storeys'" in found
+    assert "outputs[0]: building (ShearBuilding) has no variable 'x_9'" in found
+
+
+def test_missing_record_lists_the_places_searched(fmu_dir, tmp_path):
+    text = system_yaml(fmu_dir).replace("elcentro_1940_ns.csv", "missing_quake.csv")
+    found = "\n".join(resolve_problems(write(tmp_path, text)))
+    assert "units.ground.parameters.record: data file 'missing_quake.csv' not found (searched:" in found
+
+
+def test_not_an_fmu(fmu_dir, tmp_path):
+    (tmp_path / "fake.fmu").write_text("not a zip")
+    text = system_yaml(fmu_dir).replace(f"{fmu_dir}/MreIsolator.fmu", str(tmp_path / "fake.fmu"))
+    found = "\n".join(resolve_problems(write(tmp_path, text)))
+    assert "units.isolator.fmu:" in found and "not an FMU (not a zip archive)" in found
+
+
+def test_algebraic_loop_is_a_scenario_error(fmu_dir, tmp_path):
+    conns = """
+        - building.a_0 -> building.ag
+        - building.x_0 -> isolator.x
+        - building.v_0 -> isolator.v
+        - isolator.F -> building.F"""
+    found = "\n".join(resolve_problems(write(tmp_path, system_yaml(fmu_dir, connections=conns))))
+    assert "connections: algebraic loop" in found and "building.a_0 -> building.ag -> building.a_0" in found
