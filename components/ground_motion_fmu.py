@@ -3,7 +3,9 @@
 Parameters: ``record`` (path of a ``time_s,accel_g`` CSV/text or PEER ``.AT2`` file),
 ``scale`` (amplitude factor; the paper uses 0.5) and ``time_scale``. Output ``ag``
 [m/s^2] at the unit's current time: linear interpolation, zero after the record ends.
-The record is read when the unit enters initialization mode.
+The record is read when the unit enters initialization mode; a problem with it is logged
+as an error there and makes the first ``fmi2DoStep`` fail (pythonfmu would turn an
+exception into fmi2Fatal, after which a host may not even free the instance).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ class GroundMotionSource(Fmi2Slave):
         self.duration = 0.0
         self._time = 0.0
         self._motion: GroundMotion | None = None
+        self._failed = ""
         self.fmi_units = {"scale": "1", "time_scale": "1", "ag": "m/s2", "duration": "s"}
         self.fmi_dependencies = {}
         par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
@@ -52,16 +55,21 @@ class GroundMotionSource(Fmi2Slave):
         self._time = start_time
 
     def enter_initialization_mode(self):
+        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
         if not self.record:
-            self.log("parameter 'record' is not set: name a record file", Fmi2Status.error)
-            raise ValueError("no record file")
-        try:
-            self._motion = GroundMotion(read_record(self.record), self.scale, self.time_scale)
-        except (RecordError, ValueError) as exc:
-            self.log(f"cannot use the ground-motion record: {exc}", Fmi2Status.error)
-            raise
-        self.duration = self._motion.duration
+            self._failed = "parameter 'record' is not set: name a record file"
+        else:
+            try:
+                self._motion = GroundMotion(read_record(self.record), self.scale, self.time_scale)
+                self.duration = self._motion.duration
+            except (RecordError, ValueError) as exc:
+                self._failed = f"cannot use the ground-motion record: {exc}"
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return False
         self._time = current_time + step_size
         return True

@@ -109,33 +109,27 @@ class MreIsolator(Fmi2Slave):
         self._coefficients()
         self._initialized = True
 
-    def _warn_on_entry(self, key: str, outside: bool, message: str) -> None:
-        if outside and not self._outside[key]:
-            self.log(message, Fmi2Status.warning)
+    def _entered(self, key: str, outside: bool) -> bool:
+        """True when a range is left now (it was inside at the previous step)."""
+        entered = outside and not self._outside[key]
         self._outside[key] = outside
+        return entered
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        for name in ("x", "v", "i"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                self.log(f"input {name} = {value} is not finite at t = {current_time:.6g} s", Fmi2Status.error)
-                return False
+        x, v, i = self.x, self.v, self.i
+        if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(i)):
+            name, value = next((n, val) for n, val in (("x", x), ("v", v), ("i", i)) if not math.isfinite(val))
+            self.log(f"input {name} = {value} is not finite at t = {current_time:.6g} s", Fmi2Status.error)
+            return False
         t = current_time
-        ax = abs(self.x)
-        self._warn_on_entry(
-            "identified",
-            ax > self.x_identified,
-            f"|x| = {ax * 1e3:.3g} mm left the identified range "
-            f"{self.x_identified * 1e3:.3g} mm at t = {t:.6g} s: the model is extrapolated",
-        )
-        self._warn_on_entry(
-            "limit",
-            ax > self.x_limit,
-            f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
-        )
-        self._warn_on_entry(
-            "current",
-            not 0.0 <= self.i <= self.i_max,
-            f"current i = {self.i:.4g} A left [0, {self.i_max:.4g}] A at t = {t:.6g} s: clipped",
-        )
+        ax = abs(x)
+        if self._entered("identified", ax > self.x_identified):
+            self.log(f"|x| = {ax * 1e3:.3g} mm left the identified range {self.x_identified * 1e3:.3g} mm "
+                     f"at t = {t:.6g} s: the model is extrapolated", Fmi2Status.warning)
+        if self._entered("limit", ax > self.x_limit):
+            self.log(f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
+                     Fmi2Status.warning)
+        if self._entered("current", not 0.0 <= i <= self.i_max):
+            self.log(f"current i = {i:.4g} A left [0, {self.i_max:.4g}] A at t = {t:.6g} s: clipped",
+                     Fmi2Status.warning)
         return True

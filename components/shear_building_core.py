@@ -141,21 +141,36 @@ class ShearBuilding:
         self.A, self.B = state_space(params)
         self.q = np.zeros(2 * self.n_levels)
         self.steps = 0  # number of steps taken: changes whenever the state does
-        self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._cache: dict[float, np.ndarray] = {}  # step -> [Phi, Gamma]
+        self._z = np.zeros(2 * self.n_levels + 2)
+        n = self.n_levels
+        # rows of [q, ag, F] -> relative accelerations, and storey shear gains
+        self._acc_rows = np.hstack([self.A[n:], self.B[n:]])
+        self._shear_k = np.asarray(params.k[1:], dtype=float)
+        self._shear_c = np.asarray(params.c[1:], dtype=float)
 
     def discretization(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma) for step h, cached per step size."""
-        pair = self._cache.get(h)
-        if pair is None:
+        PG = self._fused(h)
+        n = len(self.q)
+        return PG[:, :n], PG[:, n:]
+
+    def _fused(self, h: float) -> np.ndarray:
+        PG = self._cache.get(h)
+        if PG is None:
             if len(self._cache) > 16:
                 self._cache.clear()
-            pair = self._cache[h] = zoh_discretize(self.A, self.B, h)
-        return pair
+            PG = self._cache[h] = np.hstack(zoh_discretize(self.A, self.B, h))
+        return PG
 
     def step(self, ag: float, F: float, h: float) -> None:
         """Advance the state by h [s], inputs held."""
-        Phi, Gamma = self.discretization(h)
-        self.q = Phi @ self.q + Gamma @ np.array((ag, F))
+        z = self._z
+        n = len(self.q)
+        z[:n] = self.q
+        z[n] = ag
+        z[n + 1] = F
+        self.q = self._fused(h) @ z
         self.steps += 1
 
     @property
@@ -170,8 +185,20 @@ class ShearBuilding:
 
     def relative_acceleration(self, ag: float, F: float) -> np.ndarray:
         """Relative accelerations per level [m/s^2] for the current state and inputs."""
+        n = len(self.q)
+        z = self._z
+        z[:n] = self.q
+        z[n] = ag
+        z[n + 1] = F
+        return self._acc_rows @ z
+
+    def output_vector(self, ag: float, F: float) -> np.ndarray:
+        """[x (N), v (N), a absolute (N), a relative (N), drift (N-1), shear (N-1)] for the inputs."""
         n = self.n_levels
-        return self.A[n:] @ self.q + self.B[n:] @ np.array((ag, F))
+        x, v = self.q[:n], self.q[n:]
+        arel = self.relative_acceleration(ag, F)
+        dx, dv = np.diff(x), np.diff(v)
+        return np.concatenate((x, v, arel + ag, arel, dx, self._shear_k * dx + self._shear_c * dv))
 
     def absolute_acceleration(self, ag: float, F: float) -> np.ndarray:
         """Absolute accelerations per level [m/s^2] (relative + ground)."""
@@ -183,6 +210,4 @@ class ShearBuilding:
 
     def storey_shears(self) -> np.ndarray:
         """Shear force in storey j = 1..n [N]: k_j drift_j + c_j (v_j - v_{j-1})."""
-        k = np.asarray(self.params.k[1:])
-        c = np.asarray(self.params.c[1:])
-        return k * np.diff(self.x) + c * np.diff(self.v)
+        return self._shear_k * np.diff(self.x) + self._shear_c * np.diff(self.v)

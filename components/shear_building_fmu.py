@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 from shear_building_core import BuildingParams
@@ -41,43 +40,48 @@ class ShearBuilding(Fmi2Slave):
         self.k = list(default.k)
         self.c = list(default.c)
         self._model: BuildingModel | None = None
+        self._failed = ""
         self._cache_key: tuple | None = None
-        self._acc = np.zeros(self.n_levels)
-        self._arel = np.zeros(self.n_levels)
+        self._values: list[float] = []
+        self._output_index: dict[int, int] = {}  # value reference -> index in output_vector
 
         inp = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
-        out = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.continuous}
         par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         self.register_variable(Real("ag", description="ground acceleration", **inp))
         self.register_variable(
             Real("F", description="isolator restoring force, acts on the base against x_0", **inp)
         )
         self.fmi_units = {"ag": "m/s2", "F": "N"}
-        feed = ("ag", "F")
         self.fmi_dependencies = {}
         for j in range(self.n_levels):
             where = "base floor" if j == 0 else f"floor {j}"
-            self._param(f"m_{j}", self.m, j, "kg", f"mass of the {where}", par)
             spring = "base to ground" if j == 0 else f"storey {j}"
+            self._param(f"m_{j}", self.m, j, "kg", f"mass of the {where}", par)
             self._param(f"k_{j}", self.k, j, "N/m", f"stiffness, {spring}", par)
             self._param(f"c_{j}", self.c, j, "N.s/m", f"damping, {spring}", par)
-        for j in range(self.n_levels):
-            where = "base floor" if j == 0 else f"floor {j}"
-            self._output(f"x_{j}", f"displacement of the {where} relative to the ground", "m",
-                         lambda j=j: self._state()[j], out)
-            self._output(f"v_{j}", f"velocity of the {where} relative to the ground", "m/s",
-                         lambda j=j: self._state()[self.n_levels + j], out)
-            self._output(f"a_{j}", f"absolute acceleration of the {where}", "m/s2",
-                         lambda j=j: self._accelerations()[0][j], out)
-            self._output(f"arel_{j}", f"acceleration of the {where} relative to the ground", "m/s2",
-                         lambda j=j: self._accelerations()[1][j], out)
-            self.fmi_dependencies[f"a_{j}"] = feed
-            self.fmi_dependencies[f"arel_{j}"] = feed
-        for j in range(1, self.n_levels):
-            self._output(f"drift_{j}", f"inter-storey drift x_{j} - x_{j - 1}", "m",
-                         lambda j=j: self._state()[j] - self._state()[j - 1], out)
-            self._output(f"shear_{j}", f"shear force in storey {j}", "N",
-                         lambda j=j: self._storey_shear(j), out)
+        # Outputs in the order of BuildingModel.output_vector.
+        levels = range(self.n_levels)
+        storeys = range(1, self.n_levels)
+
+        def where(j):
+            return "base floor" if j == 0 else f"floor {j}"
+
+        outputs = (
+            [(f"x_{j}", "m", f"displacement of the {where(j)} relative to the ground") for j in levels]
+            + [(f"v_{j}", "m/s", f"velocity of the {where(j)} relative to the ground") for j in levels]
+            + [(f"a_{j}", "m/s2", f"absolute acceleration of the {where(j)}") for j in levels]
+            + [(f"arel_{j}", "m/s2", f"acceleration of the {where(j)} relative to the ground") for j in levels]
+            + [(f"drift_{j}", "m", f"inter-storey drift x_{j} - x_{j - 1}") for j in storeys]
+            + [(f"shear_{j}", "N", f"shear force in storey {j}") for j in storeys]
+        )
+        for index, (name, unit, text) in enumerate(outputs):
+            var = Real(name, description=text, causality=Fmi2Causality.output,
+                       variability=Fmi2Variability.continuous, getter=lambda index=index: self._outputs()[index])
+            self.register_variable(var)
+            self._output_index[var.value_reference] = index
+            self.fmi_units[name] = unit
+            if name.startswith(("a_", "arel_")):
+                self.fmi_dependencies[name] = ("ag", "F")
 
     def _param(self, name, store, j, unit, text, attrs) -> None:
         def setter(value, store=store, j=j):
@@ -87,46 +91,51 @@ class ShearBuilding(Fmi2Slave):
         self.register_variable(Real(name, description=text, getter=lambda: store[j], setter=setter, **attrs))
         self.fmi_units[name] = unit
 
-    def _output(self, name, text, unit, getter, attrs) -> None:
-        self.register_variable(Real(name, description=text, getter=getter, **attrs))
-        self.fmi_units[name] = unit
-
-    def _building(self) -> BuildingModel:
+    def _building(self) -> BuildingModel | None:
+        """The model for the present parameters, or None (logged once) if they are invalid."""
         if self._model is None:
-            self._model = BuildingModel(BuildingParams(tuple(self.m), tuple(self.k), tuple(self.c)))
+            try:
+                self._model = BuildingModel(BuildingParams(tuple(self.m), tuple(self.k), tuple(self.c)))
+                self._failed = ""
+            except ValueError as exc:
+                if not self._failed:
+                    self.log(f"invalid building parameters: {exc}", Fmi2Status.error)
+                self._failed = f"invalid building parameters: {exc}"
             self._cache_key = None
         return self._model
 
-    def _state(self) -> np.ndarray:
-        return self._building().q
-
-    def _accelerations(self) -> tuple[np.ndarray, np.ndarray]:
+    def _outputs(self) -> list[float]:
+        """All outputs for the present state and inputs, computed once per change (NaN if invalid)."""
         model = self._building()
-        key = (self.ag, self.F, model.steps)
+        if model is None:
+            return [math.nan] * len(self._output_index)
+        key = (self.ag, self.F, model.steps, id(model))
         if key != self._cache_key:
-            self._arel = model.relative_acceleration(self.ag, self.F)
-            self._acc = self._arel + self.ag
+            self._values = model.output_vector(self.ag, self.F).tolist()
             self._cache_key = key
-        return self._acc, self._arel
+        return self._values
 
-    def _storey_shear(self, j: int) -> float:
-        q = self._state()
-        n = self.n_levels
-        return self.k[j] * (q[j] - q[j - 1]) + self.c[j] * (q[n + j] - q[n + j - 1])
+    def get_real(self, vrs):
+        # Fast path for outputs (one evaluation for all of them); pythonfmu's for the rest.
+        index = self._output_index
+        if all(vr in index for vr in vrs):
+            values = self._outputs()
+            return [values[index[vr]] for vr in vrs]
+        return super().get_real(vrs)
 
     def exit_initialization_mode(self):
-        try:
-            self._building()
-        except ValueError as exc:
-            self.log(f"invalid building parameters: {exc}", Fmi2Status.error)
-            raise
+        self._building()  # logs invalid parameters; an exception here would be fmi2Fatal
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        model = self._building()
+        if model is None:
+            self.log(self._failed, Fmi2Status.error)
+            return False
         if not (math.isfinite(self.ag) and math.isfinite(self.F)):
             self.log(
                 f"input ag = {self.ag} or F = {self.F} is not finite at t = {current_time:.6g} s",
                 Fmi2Status.error,
             )
             return False
-        self._building().step(self.ag, self.F, step_size)
+        model.step(self.ag, self.F, step_size)
         return True

@@ -54,6 +54,7 @@ class SosmCurrentController(Fmi2Slave):
         for name in _MODEL:
             setattr(self, name, getattr(TABLE2, name))
         self._controller: SosmController | None = None
+        self._failed = ""
 
         self.fmi_units = {"x": "m", "v": "m/s", "a": "m/s2", "i": "A", "i_passive": "A", "i_start": "A"}
         self.fmi_dependencies = {}
@@ -87,6 +88,8 @@ class SosmCurrentController(Fmi2Slave):
         return SosmController(gains, GeneralizedCoefficients(**model), i0=self.i_start)
 
     def _current(self) -> float:
+        if self._failed:
+            return math.nan
         if self.mode == "passive":
             return min(max(self.i_passive, 0.0), self.i_max)
         if self._controller is None:
@@ -94,16 +97,21 @@ class SosmCurrentController(Fmi2Slave):
         return self._controller.i
 
     def exit_initialization_mode(self):
+        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
         if self.mode not in MODES:
-            self.log(f"parameter mode = {self.mode!r} is not one of {MODES}", Fmi2Status.error)
-            raise ValueError(f"unknown mode {self.mode!r}")
-        try:
-            self._controller = self._make_controller()
-        except ValueError as exc:
-            self.log(f"invalid controller parameters: {exc}", Fmi2Status.error)
-            raise
+            self._failed = f"parameter mode = {self.mode!r} is not one of {MODES}"
+        else:
+            try:
+                self._controller = self._make_controller()
+            except ValueError as exc:
+                self._failed = f"invalid controller parameters: {exc}"
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return False
         if not all(math.isfinite(val) for val in (self.x, self.v, self.a)):
             self.log(
                 f"input x = {self.x}, v = {self.v} or a = {self.a} is not finite at t = {current_time:.6g} s",

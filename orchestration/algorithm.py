@@ -1,19 +1,31 @@
 """Fixed-step coupling algorithms over the :class:`~orchestration.unit.Unit` interface.
 
-All exchanged values live in one array (``values``); every connected or recorded output
+All exchanged values live in one array (``values``); every connected or watched output
 has a slot. Per unit, the connected inputs and the slotted outputs are prepared once as
 reference handles, so a step is a fixed sequence of batched ``set_real``/``step``/
-``get_real`` calls.
+``get_real`` calls with no per-step allocation.
 
-One communication step from t to t + h:
+**Order.** Jacobi: every unit takes its inputs before any unit steps. Gauss-Seidel: units
+step one after the other in :func:`~orchestration.graph.gauss_seidel_order`, so a unit
+can use values its sources already computed at t + h ("fresh" sources).
 
-* Jacobi: every unit gets its inputs from the values at t, all step, all outputs are read.
-* Gauss-Seidel: units step one after the other in :func:`~orchestration.graph.gauss_seidel_order`;
-  each reads the freshest values (t + h from units that already stepped, else t).
+**Inputs held over a step** (``inputs``):
 
-Both end with *feedthrough propagation*: outputs that depend directly on connected
-inputs are re-evaluated level by level with the new inputs, so that all recorded values
-at t + h are consistent with each other (e.g. a force computed from the displacement at
+* ``hold``: the latest value (the source's value at t, or at t + h if it is fresh). This
+  is classic explicit coupling; its error is first order in the step.
+* ``step-mean`` (default): an estimate of the source's *mean over the step*: the trapezoid
+  (y(t) + y(t + h)) / 2 if the source is fresh, otherwise the mid-step value of the
+  quadratic through y(t - 2h), y(t - h), y(t), i.e. (15 y(t) - 10 y(t - h) + 3 y(t - 2h)) / 8
+  (linear, then constant, while the history is shorter). A unit that holds its inputs
+  over the step (zero-order hold) then sees the right impulse, which removes the half-step
+  lag of explicit coupling; no rollback or iteration is needed.
+
+A ``delayed`` connection always passes the source's value at t: a sample-and-hold, as a
+digital controller sampling at the communication points sees its measurements.
+
+Every step ends with *feedthrough propagation*: outputs that depend directly on connected
+inputs are re-evaluated level by level with the end-of-step values, so all values at
+t + h are consistent with each other (e.g. a force computed from the displacement at
 t + h, not at t).
 """
 
@@ -29,19 +41,44 @@ from orchestration.graph import Link, Port, feedthrough_inputs, gauss_seidel_ord
 from orchestration.unit import Unit
 
 Scheme = Literal["gauss-seidel", "jacobi"]
+InputEstimate = Literal["hold", "step-mean"]
+
+# Mid-step value of the polynomial through the last 1, 2 or 3 values (newest first).
+_EXTRAPOLATION = (
+    (1.0, 0.0, 0.0),
+    (1.5, -0.5, 0.0),
+    (15.0 / 8.0, -10.0 / 8.0, 3.0 / 8.0),
+)
 
 
 @dataclass
 class _Transfer:
-    """Set some inputs of a unit from slots, or read some outputs into slots."""
+    """Read some outputs of a unit into slots, or set some inputs from slots."""
 
     unit: Unit
     handle: Any
     slots: np.ndarray
 
 
+@dataclass
+class _InputPlan:
+    """How one unit's connected inputs are formed before it steps, grouped by rule."""
+
+    unit: Unit
+    handle: Any
+    buffer: np.ndarray
+    start: tuple[np.ndarray, np.ndarray]  # (positions in buffer, slots): value at t
+    fresh: tuple[np.ndarray, np.ndarray]  # value at t + h
+    mean: tuple[np.ndarray, np.ndarray]  # trapezoid of t and t + h
+    extrapolated: tuple[np.ndarray, np.ndarray]  # mid-step extrapolation from t, t - h, t - 2h
+
+
+def _pair(items: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    return (np.asarray([p for p, _ in items], dtype=np.intp), np.asarray([s for _, s in items], dtype=np.intp))
+
+
 class CouplingAlgorithm:
-    """Steps a set of units coupled by links, with Jacobi or Gauss-Seidel transfer."""
+    """Steps a set of units coupled by links (Jacobi or Gauss-Seidel; hold or step-mean inputs)."""
 
     def __init__(
         self,
@@ -50,10 +87,12 @@ class CouplingAlgorithm:
         watched: Sequence[Port] = (),
         scheme: Scheme = "gauss-seidel",
         order: Sequence[str] | None = None,
+        inputs: InputEstimate = "step-mean",
     ) -> None:
         self.units = {u.name: u for u in units}
         self.links = list(links)
         self.scheme = scheme
+        self.inputs = inputs
         desc = {u.name: u.description for u in units}
         self.levels = propagation_order(desc, self.links)  # raises AlgebraicLoopError
         if order is None:
@@ -67,23 +106,49 @@ class CouplingAlgorithm:
             if var.causality != "output":
                 continue
             self.slot.setdefault(port, len(self.slot))
-        self.values = np.zeros(len(self.slot))
+        n = len(self.slot)
+        self.values = np.zeros(n)  # latest values (end of step once a step is done)
+        self._history = [np.zeros(n), np.zeros(n), np.zeros(n)]  # values at t, t - h, t - 2h
+        self._known = 0  # how many history entries are real
         self._desc = desc
         self._source = {link.target: link.source for link in self.links}
-        self._inputs: dict[str, _Transfer] = {}
         self._outputs: dict[str, _Transfer] = {}
         for name, unit in self.units.items():
-            ins = [(p, s) for p, s in self._source.items() if p[0] == name]
             outs = [(p, k) for p, k in self.slot.items() if p[0] == name]
-            if ins:
-                self._inputs[name] = self._transfer(unit, [p for p, _ in ins], [self.slot[s] for _, s in ins])
             if outs:
                 self._outputs[name] = self._transfer(unit, [p for p, _ in outs], [k for _, k in outs])
+        self._input_plans = self._plan_inputs()
         self._propagation = self._plan_propagation()
 
     def _transfer(self, unit: Unit, ports: list[Port], slots: list[int]) -> _Transfer:
         refs = [self._desc[unit.name].variables[p[1]].vr for p in ports]
         return _Transfer(unit, unit.prepare(refs), np.asarray(slots, dtype=np.intp))
+
+    def _plan_inputs(self) -> dict[str, _InputPlan]:
+        stepped_before: set[str] = set()
+        plans = {}
+        sequence = self.order if self.scheme == "gauss-seidel" else list(self.units.values())
+        for unit in sequence:
+            links = [link for link in self.links if link.target[0] == unit.name]
+            groups: dict[str, list[tuple[int, int]]] = {"start": [], "fresh": [], "mean": [], "extrapolated": []}
+            for k, link in enumerate(links):
+                slot = self.slot[link.source]
+                fresh = self.scheme == "gauss-seidel" and link.source[0] in stepped_before
+                if link.delayed:
+                    rule = "start"
+                elif self.inputs == "hold":
+                    rule = "fresh" if fresh else "start"
+                else:
+                    rule = "mean" if fresh else "extrapolated"
+                groups[rule].append((k, slot))
+            if links:
+                refs = [self._desc[unit.name].variables[link.target[1]].vr for link in links]
+                plans[unit.name] = _InputPlan(
+                    unit, unit.prepare(refs), np.zeros(len(links)),
+                    **{rule: _pair(items) for rule, items in groups.items()},
+                )
+            stepped_before.add(unit.name)
+        return plans
 
     def _plan_propagation(self) -> list[tuple[_Transfer, _Transfer]]:
         """Per level and unit: (inputs to set, feedthrough outputs to read)."""
@@ -106,10 +171,33 @@ class CouplingAlgorithm:
         return plan
 
     # -- phases ------------------------------------------------------------------------------------
-    def _set_inputs(self, name: str) -> None:
-        tr = self._inputs.get(name)
-        if tr is not None:
-            tr.unit.set_real(tr.handle, self.values[tr.slots])
+    def _set_inputs(self, plan: _InputPlan) -> None:
+        buf = plan.buffer
+        now, before, earlier = self._history
+        pos, slots = plan.start
+        if len(pos):
+            buf[pos] = now[slots]
+        pos, slots = plan.fresh
+        if len(pos):
+            buf[pos] = self.values[slots]
+        pos, slots = plan.mean
+        if len(pos):
+            buf[pos] = 0.5 * (now[slots] + self.values[slots])
+        pos, slots = plan.extrapolated
+        if len(pos):
+            c0, c1, c2 = _EXTRAPOLATION[min(self._known, 3) - 1]
+            buf[pos] = c0 * now[slots] + c1 * before[slots] + c2 * earlier[slots]
+        plan.unit.set_real(plan.handle, buf)
+
+    def _set_all_current(self, name: str) -> None:
+        """Set a unit's connected inputs to the present values (initialization)."""
+        plan = self._input_plans.get(name)
+        if plan is None:
+            return
+        positions = np.concatenate([plan.start[0], plan.fresh[0], plan.mean[0], plan.extrapolated[0]])
+        slots = np.concatenate([plan.start[1], plan.fresh[1], plan.mean[1], plan.extrapolated[1]])
+        plan.buffer[positions] = self.values[slots]
+        plan.unit.set_real(plan.handle, plan.buffer)
 
     def _get_outputs(self, name: str) -> None:
         tr = self._outputs.get(name)
@@ -117,7 +205,7 @@ class CouplingAlgorithm:
             self.values[tr.slots] = tr.unit.get_real(tr.handle)
 
     def propagate(self) -> None:
-        """Re-evaluate feedthrough outputs with the present inputs, level by level."""
+        """Re-evaluate feedthrough outputs with the present (end-of-step) inputs, level by level."""
         values = self.values
         for setter, getter in self._propagation:
             setter.unit.set_real(setter.handle, values[setter.slots])
@@ -129,10 +217,13 @@ class CouplingAlgorithm:
             unit.setup(start_time, stop_time)
         self._consistent_outputs()
         for name in self.units:
-            self._set_inputs(name)
+            self._set_all_current(name)
         for unit in self.units.values():
             unit.exit_initialization()
         self._consistent_outputs()
+        for h in self._history:
+            h[:] = self.values
+        self._known = 1
 
     def _consistent_outputs(self) -> None:
         for name in self.units:
@@ -141,19 +232,29 @@ class CouplingAlgorithm:
 
     def step(self, t: float, h: float) -> None:
         """One communication step from t to t + h [s]."""
+        plans = self._input_plans
         if self.scheme == "jacobi":
-            for name in self.units:
-                self._set_inputs(name)
-            for unit in self.units.values():
+            for unit in self.order:
+                plan = plans.get(unit.name)
+                if plan is not None:
+                    self._set_inputs(plan)
+            for unit in self.order:
                 unit.step(t, h)
-            for name in self.units:
-                self._get_outputs(name)
+            for unit in self.order:
+                self._get_outputs(unit.name)
         else:
             for unit in self.order:
-                self._set_inputs(unit.name)
+                plan = plans.get(unit.name)
+                if plan is not None:
+                    self._set_inputs(plan)
                 unit.step(t, h)
                 self._get_outputs(unit.name)
         self.propagate()
+        # history: the oldest array is reused for the new "now"
+        oldest = self._history.pop()
+        oldest[:] = self.values
+        self._history.insert(0, oldest)
+        self._known += 1
 
     def value(self, port: Port) -> float:
         """Present value of a slotted output."""

@@ -147,10 +147,12 @@ class FmuUnit:
         self._initialized = False
         self._callbacks = None
         self._f: dict[str, Any] = {}
+        self._worst = 0  # worst FMI status returned so far
 
     # -- FMI status translation: the only place -------------------------------------------------
     def _check(self, function: str, status: int) -> None:
         if status > 1:
+            self._worst = max(self._worst, status)
             label = _STATUS[status] if 0 <= status < len(_STATUS) else f"illegal status {status}"
             recent = tuple(f"[{r.status}] {r.message}" for r in self.log[-5:] if r.status != "ok")
             raise UnitCallError(self.name, function, label, self._time, recent)
@@ -273,11 +275,24 @@ class FmuUnit:
         return out
 
     def terminate(self) -> None:
-        """Terminate (if initialized), free the instance and the extracted files; never raises."""
+        """Terminate (if initialized), free the instance and the extracted files; never raises.
+
+        FMI 2.0 rules after a failure: after fmi2Error only fmi2FreeInstance is allowed; after
+        fmi2Fatal nothing at all, so such an instance is left to the process (and its
+        library stays loaded).
+        """
         fmu, self._fmu = self._fmu, None
+        if fmu is not None and self._worst >= 4:
+            self._instantiated = self._initialized = False
+            _LOG_TARGETS.pop(getattr(self, "_env_key", 0), None)
+            self._abandoned = fmu  # keep the library loaded: its instance was never freed
+            if self._dir is not None:
+                shutil.rmtree(self._dir, ignore_errors=True)
+                self._dir = None
+            return
         try:
             if fmu is not None and self._instantiated:
-                if self._initialized:
+                if self._initialized and self._worst < 3:
                     try:
                         fmu.fmi2Terminate(fmu.component)
                     except Exception:  # a failed unit may refuse to terminate; free it anyway

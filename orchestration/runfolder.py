@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import os
@@ -74,13 +73,14 @@ def write_text(path: Path, text: str) -> None:
 
 
 def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray) -> None:
-    """CSV with a ``time`` column first, then one column per variable, full precision."""
+    """CSV with a ``time`` column first, then one column per variable (12 significant digits)."""
+    row = ",".join(["%.12g"] * (len(names) + 1)) + "\n"
 
     def write(f):
-        w = csv.writer(f)
-        w.writerow(["time", *names])
-        block = np.column_stack([time, data])
-        f.writelines(",".join(row) + "\n" for row in block.astype(str))
+        f.write(",".join(["time", *names]) + "\n")
+        block = np.column_stack([time, data]).tolist()
+        for start in range(0, len(block), 20000):
+            f.write("".join(row % tuple(r) for r in block[start : start + 20000]))
 
     _atomic(path, write)
 

@@ -82,6 +82,9 @@ class SimulationSpec(_Strict):
     stop_time: float = Field(description="[s]")
     start_time: float = Field(0.0, description="[s]")
     algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    inputs: Literal["step-mean", "hold"] = Field(
+        "step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
+    )
     order: list[str] | None = None
 
     @model_validator(mode="after")

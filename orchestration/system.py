@@ -54,7 +54,8 @@ class SystemPlan:
     def create_algorithm(self, units: list[FmuUnit]) -> CouplingAlgorithm:
         """The coupling algorithm for these units, as the scenario chose it."""
         sim = self.loaded.scenario.simulation
-        return CouplingAlgorithm(units, self.links, self.recorded + list(self.limits), sim.algorithm, sim.order)
+        return CouplingAlgorithm(units, self.links, self.recorded + list(self.limits), sim.algorithm, sim.order,
+                                 sim.inputs)
 
 
 def _ensure_fmu(path: Path) -> str | None:

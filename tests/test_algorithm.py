@@ -13,8 +13,8 @@ from orchestration.recorder import Recorder
 from .fake_units import FakeUnit, clock, gain, sampler
 
 
-def run(units, links, scheme, n=4, h=0.5, watched=()):
-    algo = CouplingAlgorithm(units, links, watched, scheme)
+def run(units, links, scheme, n=4, h=0.5, watched=(), inputs="hold"):
+    algo = CouplingAlgorithm(units, links, watched, scheme, inputs=inputs)
     rec = Recorder(algo, list(watched), n)
     result = execute(algo, 0.0, n * h, h, [rec])
     return algo, rec, result
@@ -30,6 +30,33 @@ def test_gauss_seidel_passes_fresh_values_jacobi_passes_old_ones():
     # Jacobi: everyone uses the values at t
     _, rec, _ = run([sampler(), clock()], link, "jacobi", watched=watched)
     assert rec.column("sampler.z").tolist() == [-1.0, 0.0, 0.5, 1.0, 1.5]
+
+
+def test_step_mean_inputs_use_the_trapezoid_of_fresh_sources():
+    """Gauss-Seidel: the sampler steps after the clock, so it holds (y(t) + y(t + h)) / 2."""
+    link = [Link(("clock", "y"), ("sampler", "u"))]
+    _, rec, _ = run([sampler(), clock()], link, "gauss-seidel", watched=[("sampler", "z")], inputs="step-mean")
+    assert rec.column("sampler.z").tolist() == [-1.0, 0.25, 0.75, 1.25, 1.75]
+
+
+def test_step_mean_inputs_extrapolate_sources_that_have_not_stepped():
+    """Jacobi: the mid-step value of the polynomial through the known values, of growing order.
+
+    The clock is y = t^2 (h = 1): y = 0, 1, 4, 9 at t = 0..3. Mid-step estimates: step 0 constant
+    y(0) = 0; step 1 linear 1.5*1 - 0.5*0 = 1.5; step 2 quadratic (15*4 - 10*1 + 3*0)/8 = 6.25 = 2.5^2
+    (exact for a quadratic), step 3 (15*9 - 10*4 + 3*1)/8 = 12.25 = 3.5^2."""
+    square = FakeUnit("sq", [], ["y"], lambda s, i: {"y": s["t"] ** 2}, lambda s, i, t, h: {"t": t + h},
+                      state={"t": 0.0})
+    _, rec, _ = run([sampler(), square], [Link(("sq", "y"), ("sampler", "u"))], "jacobi", n=4, h=1.0,
+                    watched=[("sampler", "z")], inputs="step-mean")
+    assert rec.column("sampler.z").tolist() == [-1.0, 0.0, 1.5, 6.25, 12.25]
+
+
+def test_delayed_connections_pass_the_value_at_the_start_of_the_step():
+    link = [Link(("clock", "y"), ("sampler", "u"), delayed=True)]
+    for inputs in ("hold", "step-mean"):
+        _, rec, _ = run([sampler(), clock()], link, "gauss-seidel", watched=[("sampler", "z")], inputs=inputs)
+        assert rec.column("sampler.z").tolist() == [-1.0, 0.0, 0.5, 1.0, 1.5]
 
 
 def test_gauss_seidel_order_follows_the_connections_not_the_declaration():
@@ -52,8 +79,9 @@ def test_feedthrough_outputs_are_consistent_at_every_communication_point():
     links = [Link(("clock", "y"), ("gain", "u"))]
     watched = [("clock", "y"), ("gain", "w")]
     for scheme in ("gauss-seidel", "jacobi"):
-        _, rec, _ = run([gain(), clock()], links, scheme, watched=watched)
-        assert rec.column("gain.w").tolist() == [2 * y for y in rec.column("clock.y")]
+        for inputs in ("hold", "step-mean"):
+            _, rec, _ = run([gain(), clock()], links, scheme, watched=watched, inputs=inputs)
+            assert rec.column("gain.w").tolist() == [2 * y for y in rec.column("clock.y")]
 
 
 def test_propagation_levels_chain_feedthrough_units():

@@ -240,15 +240,29 @@ def test_non_finite_input_gives_an_fmi_error_status(fmu_dir, capfd, name, variab
         unit.close()
 
 
+def _fails_at_first_step(unit: Driven) -> None:
+    """A problem found at initialization is logged there and fails the first step with discard
+    (pythonfmu would make an exception fmi2Fatal, after which the instance cannot even be freed)."""
+    try:
+        with pytest.raises(FMICallException) as err:
+            unit.step(0.0, 1e-3)
+        assert err.value.status == 2
+    finally:
+        unit.close()
+
+
 def test_ground_fmu_reports_a_bad_record(fmu_dir, tmp_path, capfd):
     bad = tmp_path / "bad.csv"
     bad.write_text("0,0\n0.02,0.1\n0.01,0.2\n")
-    with pytest.raises(FMICallException):
-        Driven(fmu_dir / "GroundMotionSource.fmu", "gm", {"record": str(bad)})
+    _fails_at_first_step(Driven(fmu_dir / "GroundMotionSource.fmu", "gm", {"record": str(bad)}))
     assert "bad.csv:3: time 0.01 s does not increase" in capfd.readouterr().out
 
 
 def test_controller_rejects_an_unknown_mode(fmu_dir, capfd):
-    with pytest.raises(FMICallException):
-        Driven(fmu_dir / "SosmCurrentController.fmu", "c", {"mode": "magic"})
+    _fails_at_first_step(Driven(fmu_dir / "SosmCurrentController.fmu", "c", {"mode": "magic"}))
     assert "mode = 'magic'" in capfd.readouterr().out
+
+
+def test_building_rejects_a_zero_mass(fmu_dir, capfd):
+    _fails_at_first_step(Driven(fmu_dir / "ShearBuilding.fmu", "b", {"m_2": 0.0}))
+    assert "masses must be positive" in capfd.readouterr().out
