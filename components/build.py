@@ -19,8 +19,8 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import inspect
+import os
 import re
-import shutil
 import sys
 import tempfile
 import zipfile
@@ -156,14 +156,28 @@ def _render_script(source: FmuSource, workdir: Path) -> Path:
     return target
 
 
-def _declared_metadata(script: Path) -> tuple[dict[str, str], dict[str, tuple[str, ...]]]:
+def _declared_metadata(script: Path) -> tuple[dict[str, str], dict[str, tuple[str, ...]], dict[str, float]]:
+    from pythonfmu import Real
+    from pythonfmu.variables import ScalarVariable
+
     module = _load_module(script, f"_meta_{script.stem}")
     instance = _shell_class(module)(instance_name="build", resources=str(script.parent))
-    return dict(instance.fmi_units), dict(instance.fmi_dependencies)
+    starts = {v.name: float(v.getter()) for v in instance.vars.values()
+              if isinstance(v, Real) and ScalarVariable.requires_start(v)}
+    return dict(instance.fmi_units), dict(instance.fmi_dependencies), starts
 
 
-def complete_model_description(xml: bytes, units: dict[str, str], deps: dict[str, tuple[str, ...]]) -> bytes:
-    """Add unit definitions, Real units and the model structure to a pythonfmu modelDescription."""
+def complete_model_description(
+    xml: bytes,
+    units: dict[str, str],
+    deps: dict[str, tuple[str, ...]],
+    starts: dict[str, float] | None = None,
+) -> bytes:
+    """Add unit definitions, Real units and the model structure to a pythonfmu modelDescription.
+
+    ``starts`` rewrites Real start values with full precision (pythonfmu writes 16
+    significant digits, which can be one ulp off the unit's own default).
+    """
     root = ET.fromstring(xml)
     variables = root.find("ModelVariables")
     index = {}
@@ -175,6 +189,8 @@ def complete_model_description(xml: bytes, units: dict[str, str], deps: dict[str
     used = set()
     for name, (_, sv) in index.items():
         real = sv.find("Real")
+        if real is not None and starts and name in starts and real.get("start") is not None:
+            real.set("start", repr(starts[name]))
         if real is None or name not in units:
             continue
         unit = units[name]
@@ -239,20 +255,27 @@ def build(source: FmuSource, dest: Path) -> Path:
         sys.path.insert(0, str(COMPONENTS_DIR))
         try:
             raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=cores)
-            units, deps = _declared_metadata(script)
+            units, deps, starts = _declared_metadata(script)
         except Exception as exc:  # pythonfmu raises plain exceptions
             raise BuildError(f"building {source.fmu_name} from {source.script.name}: {exc}") from exc
         finally:
             sys.path.remove(str(COMPONENTS_DIR))
             sys.modules.pop(script.stem, None)
-        partial = tmp / "out.fmu"
-        with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
-            for item in zin.infolist():
-                data = zin.read(item.filename)
-                if item.filename == "modelDescription.xml":
-                    data = complete_model_description(data, units, deps)
-                zout.writestr(item, data)
-        shutil.move(partial, target)
+        # Written next to the target and renamed: a concurrent reader never sees half an FMU.
+        fd, partial = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=dest)
+        os.close(fd)
+        try:
+            with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
+                for item in zin.infolist():
+                    data = zin.read(item.filename)
+                    if item.filename == "modelDescription.xml":
+                        data = complete_model_description(data, units, deps, starts)
+                    zout.writestr(item, data)
+            os.chmod(partial, 0o644)
+            os.replace(partial, target)
+        except BaseException:
+            Path(partial).unlink(missing_ok=True)
+            raise
     return target
 
 
@@ -264,6 +287,9 @@ def ensure_built(dest: Path = DEFAULT_FMU_DIR, force: bool = False, storeys: tup
         if force or is_stale(source, fmu):
             build(source, dest)
         paths.append(fmu)
+    from components.c_isolator_build import ensure_c_isolator  # the plain-C isolator, not pythonfmu
+
+    paths.append(ensure_c_isolator(dest, force))
     return paths
 
 

@@ -37,6 +37,10 @@ def _dispatch_log(env, instance, status, category, message) -> None:
     unit = ref() if ref is not None else None
     if unit is not None:
         unit._receive_log(status, category, message)
+    else:  # an instance made elsewhere with fmpy's default callbacks: print as fmpy would
+        from fmpy.fmi1 import printLogMessage
+
+        printLogMessage(env, instance, status, category, message)
 
 
 def _shared_callbacks():

@@ -25,7 +25,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="run.py", description="Run a co-simulation scenario and write a run folder."
     )
-    parser.add_argument("scenario", type=Path, help="scenario YAML file")
+    parser.add_argument("scenario", type=Path, help="scenario YAML file or SSP package (.ssp)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key; UNIT.PARAM=VALUE sets a unit parameter "
                              "(e.g. --set controller.mode=passive)")

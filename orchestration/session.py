@@ -50,7 +50,11 @@ def _plain(data: Any) -> Any:
 
 
 def plan_scenario(path: Path, overrides: tuple[str, ...] = (), data_dirs: tuple[Path, ...] = ()) -> SystemPlan:
-    """Load and check a scenario (builds project FMUs if needed); raises ScenarioError."""
+    """Load and check a scenario or SSP package (builds project FMUs if needed); raises ScenarioError."""
+    if Path(path).suffix.lower() == ".ssp":
+        from orchestration.ssp import load_ssp
+
+        return resolve(load_ssp(path, overrides), data_dirs)
     return resolve(load_scenario(path, overrides), data_dirs)
 
 

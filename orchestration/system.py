@@ -61,7 +61,14 @@ class SystemPlan:
 def _ensure_fmu(path: Path) -> str | None:
     """Build the FMU if the project builds it and it is missing or stale; returns a problem text."""
     from components.build import BuildError, build, is_stale, known_fmu
+    from components.c_isolator_build import ensure_c_isolator, is_c_isolator
 
+    if is_c_isolator(path):
+        try:
+            ensure_c_isolator(path.parent)
+        except BuildError as exc:
+            return f"cannot build {path.name}: {exc}"
+        return None
     source = known_fmu(path)
     if source is None:
         return None if path.is_file() else f"FMU file {path} does not exist"
