@@ -77,6 +77,8 @@ class FmuSource:
     class_name: str
     core_modules: tuple[str, ...]
     storeys: int | None = None  # only for shells that take N_STOREYS at build time
+    requirements: tuple[str, ...] = ()  # Python packages the unit imports on the host
+    handles_state: bool = False  # the shell implements fmi2GetFMUstate/fmi2SetFMUstate
 
     @property
     def fmu_name(self) -> str:
@@ -126,11 +128,15 @@ def discover(storeys: tuple[int, ...] = ()) -> list[FmuSource]:
         module = _load_module(script, f"_discover_{script.stem}")
         cls = _shell_class(module)
         cores = tuple(getattr(module, "FMU_CORE_MODULES", ()))
+        extra = {
+            "requirements": tuple(getattr(module, "FMU_REQUIREMENTS", ())),
+            "handles_state": "_get_fmu_state" in vars(cls) and "_set_fmu_state" in vars(cls),
+        }
         if hasattr(module, "N_STOREYS"):
             for n in sorted({module.N_STOREYS, *storeys}):
-                found.append(FmuSource(script, cls.__name__, cores, storeys=n))
+                found.append(FmuSource(script, cls.__name__, cores, storeys=n, **extra))
         else:
-            found.append(FmuSource(script, cls.__name__, cores))
+            found.append(FmuSource(script, cls.__name__, cores, **extra))
     return found
 
 
@@ -242,6 +248,31 @@ def complete_model_description(
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
 
+PYTHON_REQUIREMENT = "Python >= 3.11 (CPython, the interpreter of the host process)"
+
+
+def _requirements_text(source: FmuSource) -> str:
+    lines = [
+        f"# {source.fmu_name} runs Python code through pythonfmu: the host process must provide",
+        f"# {PYTHON_REQUIREMENT} with these packages installed:",
+        *source.requirements,
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _documentation(source: FmuSource) -> str:
+    packages = ", ".join(source.requirements) or "none besides the standard library"
+    return (
+        f"<html><head><title>{source.class_name}</title></head><body>"
+        f"<h1>{source.class_name}</h1>"
+        f"<p>An FMI 2.0 co-simulation unit of the mre-cosim toolkit, built with pythonfmu. It executes "
+        f"Python: the importing tool must run it in a process with {PYTHON_REQUIREMENT}; packages: "
+        f"{packages} (also listed in resources/requirements.txt).</p>"
+        f"<p>Variables, units and their meaning: see modelDescription.xml and the project README.</p>"
+        f"</body></html>\n"
+    )
+
+
 def build(source: FmuSource, dest: Path) -> Path:
     """Build one FMU into ``dest`` and complete its modelDescription; returns its path."""
     from pythonfmu import FmuBuilder
@@ -252,9 +283,16 @@ def build(source: FmuSource, dest: Path) -> Path:
         tmp = Path(tmp)
         script = _render_script(source, tmp)
         cores = [COMPONENTS_DIR / f"{m}.py" for m in source.core_modules]
+        requirements = tmp / "requirements.txt"
+        requirements.write_text(_requirements_text(source))
+        docs = tmp / "documentation"
+        docs.mkdir()
+        (docs / "index.html").write_text(_documentation(source))
+        options = {"canGetAndSetFMUstate": True} if source.handles_state else {}
         sys.path.insert(0, str(COMPONENTS_DIR))
         try:
-            raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=cores)
+            raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=[*cores, requirements],
+                                       documentation_folder=docs, **options)
             units, deps, starts = _declared_metadata(script)
         except Exception as exc:  # pythonfmu raises plain exceptions
             raise BuildError(f"building {source.fmu_name} from {source.script.name}: {exc}") from exc

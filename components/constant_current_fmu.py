@@ -6,9 +6,12 @@ for the SOSM controller to run the passive structure with another unit.
 
 from __future__ import annotations
 
+import copy
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 FMU_CORE_MODULES: tuple[str, ...] = ()
+FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 
 
 class ConstantCurrent(Fmi2Slave):
@@ -18,6 +21,7 @@ class ConstantCurrent(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
         self.current = 0.0
         self.fmi_units = {"current": "A", "i": "A"}
         self.fmi_dependencies = {}
@@ -32,3 +36,11 @@ class ConstantCurrent(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         return True
+
+    # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,
+    # registered or not, deep-copied; pythonfmu's own bookkeeping is left alone.
+    def _get_fmu_state(self) -> dict:
+        return {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._slave_attrs}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        vars(self).update(copy.deepcopy(state))

@@ -10,11 +10,14 @@ exception into fmi2Fatal, after which a host may not even free the instance).
 
 from __future__ import annotations
 
+import copy
+
 from ground_motion_core import GroundMotion, RecordError, read_record
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("ground_motion_core",)
+FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11
 
 
 class GroundMotionSource(Fmi2Slave):
@@ -24,6 +27,7 @@ class GroundMotionSource(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
         self.record = ""
         self.scale = 1.0
         self.time_scale = 1.0
@@ -73,3 +77,13 @@ class GroundMotionSource(Fmi2Slave):
             return False
         self._time = current_time + step_size
         return True
+
+    # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,
+    # registered or not, deep-copied; pythonfmu's own bookkeeping is left alone.
+    def _get_fmu_state(self) -> dict:
+        memo = {id(self._motion): self._motion}  # the record is read-only once loaded: shared, not copied
+        return {k: copy.deepcopy(v, memo) for k, v in vars(self).items() if k not in self._slave_attrs}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        memo = {id(state.get("_motion")): state.get("_motion")}
+        vars(self).update(copy.deepcopy(state, memo))

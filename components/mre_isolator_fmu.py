@@ -12,6 +12,7 @@ Non-finite inputs make ``fmi2DoStep`` fail with fmi2Error and a logged message.
 
 from __future__ import annotations
 
+import copy
 import math
 
 from mre_isolator_core import (
@@ -26,6 +27,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("mre_isolator_core",)
+FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 
 _COEFFICIENTS = {
     "k0_0": ("N/(m.A)", "stiffness k0 slope per ampere (Table 2 k0^0)"),
@@ -46,6 +48,7 @@ class MreIsolator(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
         self.x = 0.0
         self.v = 0.0
         self.i = 0.0
@@ -133,3 +136,11 @@ class MreIsolator(Fmi2Slave):
             self.log(f"current i = {i:.4g} A left [0, {self.i_max:.4g}] A at t = {t:.6g} s: clipped",
                      Fmi2Status.warning)
         return True
+
+    # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,
+    # registered or not, deep-copied; pythonfmu's own bookkeeping is left alone.
+    def _get_fmu_state(self) -> dict:
+        return {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._slave_attrs}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        vars(self).update(copy.deepcopy(state))

@@ -13,6 +13,7 @@ variants under their own module names).
 
 from __future__ import annotations
 
+import copy
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -22,6 +23,7 @@ from shear_building_core import ShearBuilding as BuildingModel
 
 N_STOREYS = 3
 FMU_CORE_MODULES = ("shear_building_core",)
+FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 
 
 class ShearBuilding(Fmi2Slave):
@@ -31,6 +33,7 @@ class ShearBuilding(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
         n = N_STOREYS
         self.n_levels = n + 1
         default = BuildingParams.dyke() if n == 3 else BuildingParams.uniform(n)
@@ -139,3 +142,11 @@ class ShearBuilding(Fmi2Slave):
             return False
         model.step(self.ag, self.F, step_size)
         return True
+
+    # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,
+    # registered or not, deep-copied; pythonfmu's own bookkeeping is left alone.
+    def _get_fmu_state(self) -> dict:
+        return {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._slave_attrs}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        vars(self).update(copy.deepcopy(state))

@@ -26,10 +26,37 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-if __package__:
-    from .mre_isolator_core import TABLE2, GeneralizedCoefficients, safe_cosh, safe_sinh
-else:  # inside an FMU the core modules sit side by side as top-level modules
-    from mre_isolator_core import TABLE2, GeneralizedCoefficients, safe_cosh, safe_sinh
+
+@dataclass(frozen=True)
+class IsolatorModel:
+    """The controller's model of the isolator: the coefficients of Eq. (13)-(16) that Psi
+    (Eq. 34) needs, SI units, per device. Defaults: Table 2 of the paper.
+
+    Kept in this module (not imported from the isolator's core) so that the controller FMU
+    carries no module another FMU also carries; any object with these attributes (e.g.
+    :class:`mre_isolator_core.GeneralizedCoefficients`) can stand in for it.
+    """
+
+    c0_0: float = 576.7  # N*s/(m*A)   (0.5767 N*s/mm/A)
+    k0_0: float = 5816.1  # N/(m*A)    (5.8161 N/mm/A)
+    alpha_0: float = 4.9810  # N/A
+    alpha_1: float = 8.1100  # N
+    beta_0: float = 132.2  # 1/(m*A)   (0.1322 1/mm/A)
+    beta_1: float = 346.3  # 1/m       (0.3463 1/mm)
+
+
+def _sinh(z: float) -> float:
+    try:
+        return math.sinh(z)
+    except OverflowError:
+        return math.copysign(math.inf, z)
+
+
+def _cosh(z: float) -> float:
+    try:
+        return math.cosh(z)
+    except OverflowError:
+        return math.inf
 
 
 @dataclass(frozen=True)
@@ -64,29 +91,36 @@ def quasi_continuous_rate(s: float, sdot: float, gains: SosmGains) -> float:
     return -gains.rho * math.copysign(1.0, sdot)
 
 
-def control_direction(x: float, v: float, i: float, coeffs: GeneralizedCoefficients = TABLE2) -> float:
-    """sign(Psi) of Eq. (34): +1, -1, or 0 where the current has no first-order effect."""
+def control_direction(x: float, v: float, i: float, coeffs: IsolatorModel | None = None) -> float:
+    """sign(Psi) of Eq. (34): +1, -1, or 0 where the current has no first-order effect.
+
+    x [m], v [m/s], i [A]; ``coeffs`` is the isolator model (Table 2 by default).
+    """
+    coeffs = coeffs if coeffs is not None else _TABLE2
     alpha = coeffs.alpha_0 * i + coeffs.alpha_1
     beta = coeffs.beta_0 * i + coeffs.beta_1
     bracket = (
         coeffs.c0_0 * v
         + coeffs.k0_0 * x
-        + coeffs.alpha_0 * safe_sinh(beta * x)
-        + alpha * coeffs.beta_0 * x * safe_cosh(beta * x)
+        + coeffs.alpha_0 * _sinh(beta * x)
+        + alpha * coeffs.beta_0 * x * _cosh(beta * x)
     )
     if bracket == 0.0 or math.isnan(bracket):
         return 0.0
     return -math.copysign(1.0, bracket)
 
 
+_TABLE2 = IsolatorModel()
+
+
 class SosmController:
     """Discrete SOSM current controller: ``update`` advances the current over one step."""
 
     def __init__(
-        self, gains: SosmGains | None = None, coeffs: GeneralizedCoefficients = TABLE2, i0: float = 0.0
+        self, gains: SosmGains | None = None, coeffs: IsolatorModel | None = None, i0: float = 0.0
     ) -> None:
         self.gains = gains if gains is not None else SosmGains()
-        self.coeffs = coeffs
+        self.coeffs = coeffs if coeffs is not None else _TABLE2
         self.i = min(max(i0, 0.0), self.gains.i_max)
 
     def rate(self, x: float, v: float, a: float) -> float:

@@ -7,14 +7,15 @@ has no direct feedthrough. ``mode = "passive"`` holds i = clip(i_passive, 0, i_m
 
 from __future__ import annotations
 
+import copy
 import math
 
-from mre_isolator_core import TABLE2, GeneralizedCoefficients
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Status
-from sosm_controller_core import SosmController, SosmGains
+from sosm_controller_core import IsolatorModel, SosmController, SosmGains
 
-FMU_CORE_MODULES = ("sosm_controller_core", "mre_isolator_core")
+FMU_CORE_MODULES = ("sosm_controller_core",)
+FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 
 _GAINS = {
     "lambda": ("lam", "1/s", "sliding-surface slope lambda"),
@@ -42,6 +43,7 @@ class SosmCurrentController(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
         defaults = SosmGains()
         self.x = 0.0
         self.v = 0.0
@@ -52,7 +54,7 @@ class SosmCurrentController(Fmi2Slave):
         for fmi_name, (attr, _, _) in _GAINS.items():
             setattr(self, fmi_name, getattr(defaults, attr))
         for name in _MODEL:
-            setattr(self, name, getattr(TABLE2, name))
+            setattr(self, name, getattr(IsolatorModel(), name))
         self._controller: SosmController | None = None
         self._failed = ""
 
@@ -84,8 +86,8 @@ class SosmCurrentController(Fmi2Slave):
 
     def _make_controller(self) -> SosmController:
         gains = SosmGains(**{attr: getattr(self, fmi_name) for fmi_name, (attr, _, _) in _GAINS.items()})
-        model = {**TABLE2.as_dict(), **{name: getattr(self, name) for name in _MODEL}}
-        return SosmController(gains, GeneralizedCoefficients(**model), i0=self.i_start)
+        model = IsolatorModel(**{name: getattr(self, name) for name in _MODEL})
+        return SosmController(gains, model, i0=self.i_start)
 
     def _current(self) -> float:
         if self._failed:
@@ -121,3 +123,11 @@ class SosmCurrentController(Fmi2Slave):
         if self.mode == "sosm":
             self._controller.update(self.x, self.v, self.a, step_size)
         return True
+
+    # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,
+    # registered or not, deep-copied; pythonfmu's own bookkeeping is left alone.
+    def _get_fmu_state(self) -> dict:
+        return {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._slave_attrs}
+
+    def _set_fmu_state(self, state: dict) -> None:
+        vars(self).update(copy.deepcopy(state))

@@ -21,8 +21,25 @@ class Observer(Protocol):
         """Called after initialization (k = 0) and after step k ends at time t [s]."""
 
 
+class StopRequest:
+    """Set by signal handlers (SIGINT, SIGTERM); the run stops cleanly at the next step boundary.
+
+    Handlers only set this flag: an exception raised from a handler could surface inside an
+    FMU's own Python code (pythonfmu units run in this interpreter) and corrupt it.
+    """
+
+    def __init__(self) -> None:
+        self.reason = ""
+
+    def set(self, reason: str) -> None:
+        self.reason = reason
+
+    def __bool__(self) -> bool:
+        return bool(self.reason)
+
+
 class Interrupted(Exception):
-    """Raised by a signal handler to stop a run cleanly (SIGTERM); Ctrl-C gives KeyboardInterrupt."""
+    """A run stopped on request."""
 
 
 @dataclass
@@ -64,6 +81,7 @@ def execute(
     observers: Sequence[Observer] = (),
     progress: Callable[[int], None] | None = None,
     progress_every: int = 1000,
+    stop_request: StopRequest | None = None,
 ) -> ExecutionResult:
     """Run the algorithm from start to stop [s] with communication step ``step`` [s].
 
@@ -81,6 +99,8 @@ def execute(
         for k in range(n_steps):
             t = t_of(k)
             t_next = t_of(k + 1)
+            if stop_request:
+                raise Interrupted(stop_request.reason)
             algorithm.step(t, t_next - t)
             for obs in observers:
                 obs.record(k + 1, t_next)
@@ -90,9 +110,9 @@ def execute(
         t = stop
     except SimulationError as exc:
         status, error = "failed", exc
-    except (KeyboardInterrupt, Interrupted):
+    except (KeyboardInterrupt, Interrupted) as exc:
         status = "interrupted"
-        error = SimulationError("interrupted by the user (SIGINT/SIGTERM)", time=t)
+        error = SimulationError(f"interrupted ({exc or 'KeyboardInterrupt'})", time=t)
     finally:
         for unit in algorithm.units.values():
             unit.terminate()

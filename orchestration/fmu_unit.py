@@ -1,8 +1,9 @@
 """FMI 2.0 co-simulation units through fmpy, and reading their model descriptions.
 
-FMI status codes become :class:`~orchestration.errors.UnitCallError` here and nowhere
-else (:meth:`FmuUnit._check`). The hot path (get, set, step) calls the FMU's C functions
-through fmpy's ctypes bindings with value-reference and value arrays prepared once.
+FMI status codes (FMI 2.0 and 3.0 alike) become :class:`~orchestration.errors.UnitCallError`
+here and nowhere else (:func:`check_status`, called by :meth:`FmuUnit._check` and by the FMI
+3.0 unit, :mod:`orchestration.fmu3_unit`). The hot path (get, set, step) calls the FMU's C
+functions through fmpy's ctypes bindings with value-reference and value arrays prepared once.
 """
 
 from __future__ import annotations
@@ -23,6 +24,23 @@ from orchestration.errors import SimulationError, UnitCallError
 from orchestration.unit import UnitDescription, Variable
 
 _STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
+FMI3_STATUS = _STATUS[:5]  # fmi3Status has no "pending"
+
+
+def check_status(
+    unit: str,
+    function: str,
+    status: int,
+    time: float | None,
+    log: Sequence[LogRecord],
+    labels: Sequence[str] = _STATUS,
+) -> None:
+    """Raise UnitCallError for an FMI status worse than warning, with the unit's recent messages."""
+    if status > 1:
+        label = labels[status] if 0 <= status < len(labels) else f"illegal status {status}"
+        recent = tuple(f"[{r.status}] {r.message}" for r in log[-5:] if r.status != "ok")
+        raise UnitCallError(unit, function, label, time, recent)
+
 
 # fmpy's native logger proxy (it formats printf-style messages) keeps ONE target function
 # for the whole process, so all units share one Python logger; it dispatches each message
@@ -66,7 +84,7 @@ def _shared_callbacks():
 
 
 class FmuFormatError(ValueError):
-    """A file that is not a usable FMI 2.0 co-simulation FMU."""
+    """A file that is not a usable FMI 2.0 or 3.0 co-simulation FMU."""
 
 
 def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
@@ -85,8 +103,12 @@ def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:  # fmpy raises several kinds for broken XML
         raise FmuFormatError(f"{path}: unreadable modelDescription.xml: {exc}") from None
+    if md.fmiVersion.startswith("3."):
+        from orchestration.fmu3_unit import describe_fmi3
+
+        return describe_fmi3(path, name, md), md
     if md.fmiVersion != "2.0":
-        raise FmuFormatError(f"{path}: FMI {md.fmiVersion} FMU; this master runs FMI 2.0 co-simulation FMUs")
+        raise FmuFormatError(f"{path}: FMI {md.fmiVersion} FMU; this master runs FMI 2.0 and 3.0 co-simulation FMUs")
     if md.coSimulation is None:
         raise FmuFormatError(f"{path}: model-exchange-only FMU; this master needs co-simulation")
     variables = {}
@@ -157,9 +179,7 @@ class FmuUnit:
     def _check(self, function: str, status: int) -> None:
         if status > 1:
             self._worst = max(self._worst, status)
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else f"illegal status {status}"
-            recent = tuple(f"[{r.status}] {r.message}" for r in self.log[-5:] if r.status != "ok")
-            raise UnitCallError(self.name, function, label, self._time, recent)
+            check_status(self.name, function, status, self._time, self.log)
 
     def _call(self, function: str, *args: Any) -> None:
         self._check(function, self._f[function](self._fmu.component, *args))

@@ -17,6 +17,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from orchestration.errors import ScenarioError
+from orchestration.execution import StopRequest
 from orchestration.runfolder import RunFolderExists
 from orchestration.session import RunOutcome, run_scenario
 
@@ -39,13 +40,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    stop = StopRequest()
 
-    def on_sigterm(signum, frame):
-        from orchestration.execution import Interrupted
+    def on_signal(signum, frame):
+        stop.set(f"{signal.Signals(signum).name} received")
 
-        raise Interrupted()
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         outcome: RunOutcome = run_scenario(
             args.scenario,
@@ -54,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             data_dirs=tuple(args.data_dirs),
             plots=not args.no_plots,
             progress=not args.quiet,
+            stop=stop,
         )
     except ScenarioError as exc:
         print(exc.report(), file=sys.stderr)
@@ -62,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if outcome.result.complete:
         print(f"run complete: {outcome.folder}")
         return 0

@@ -221,10 +221,19 @@ class LoadedScenario:
         file, line = locate(self.lines, key)
         return Problem(message, dotted(key), file or str(self.path), line)
 
+    def base_dir(self, *key: Any) -> Path:
+        """Folder that relative paths at a key are relative to: that of the file that set the key
+        (a base file reached through ``extends`` keeps its own folder); the working directory
+        for command-line overrides."""
+        file, _ = self.lines.get(tuple(key), ("", None))
+        if file.startswith("--set"):
+            return Path.cwd()
+        return Path(file).parent if file and Path(file).is_file() else self.path.parent
+
     def fmu_path(self, unit: str) -> Path:
-        """Absolute FMU path of a unit (relative paths are relative to the scenario file)."""
-        fmu = Path(self.scenario.units[unit].fmu)
-        return fmu if fmu.is_absolute() else (self.path.parent / fmu).resolve()
+        """Absolute FMU path of a unit (relative paths: see :meth:`base_dir`)."""
+        fmu = Path(self.scenario.units[unit].fmu).expanduser()
+        return fmu if fmu.is_absolute() else (self.base_dir("units", unit, "fmu") / fmu).resolve()
 
 
 def _pydantic_problems(exc: ValidationError, lines: Lines, path: Path) -> list[Problem]:

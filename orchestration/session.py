@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from orchestration.execution import ExecutionResult, execute
+from orchestration.execution import ExecutionResult, StopRequest, execute
 from orchestration.fmu_unit import LogRecord
 from orchestration.monitor import Monitor
 from orchestration.recorder import Recorder
@@ -37,6 +37,7 @@ class RunOutcome:
     result: ExecutionResult
     summary: dict[str, Any]
     recorder: Recorder
+    units: list[Any]  # the units as left after the run (all terminated and freed)
 
 
 def _plain(data: Any) -> Any:
@@ -63,8 +64,9 @@ def run_plan(
     out: Path | None = None,
     plots: bool = True,
     progress: bool = False,
+    stop: StopRequest | None = None,
 ) -> RunOutcome:
-    """Execute a checked plan and write its run folder (partial results if it fails)."""
+    """Execute a checked plan and write its run folder (partial results if it fails or is stopped)."""
     sc = plan.loaded.scenario
     folder = new_run_folder(Path(sc.results.dir), sc.name, out)
     warnings: dict[str, int] = {name: 0 for name in plan.descriptions}
@@ -95,7 +97,7 @@ def run_plan(
     monitor = Monitor(algorithm, plan.limits)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     result = execute(algorithm, sc.simulation.start_time, sc.simulation.stop_time, sc.simulation.step,
-                     [recorder, monitor], progress=tick)
+                     [recorder, monitor], progress=tick, stop_request=stop)
     if bar is not None:
         bar.close()
 
@@ -130,7 +132,7 @@ def run_plan(
         "unit_messages": messages[-200:],
     }
     write_json(folder / "manifest.json", manifest)
-    return RunOutcome(folder, result, summary, recorder)
+    return RunOutcome(folder, result, summary, recorder, units)
 
 
 def run_scenario(
@@ -140,7 +142,8 @@ def run_scenario(
     data_dirs: tuple[Path, ...] = (),
     plots: bool = True,
     progress: bool = False,
+    stop: StopRequest | None = None,
 ) -> RunOutcome:
     """Load, check and run a scenario file; ScenarioError before anything is written."""
     plan = plan_scenario(path, overrides, data_dirs)
-    return run_plan(plan, out, plots, progress)
+    return run_plan(plan, out, plots, progress, stop)

@@ -16,6 +16,7 @@ from typing import Any
 from orchestration.algorithm import CouplingAlgorithm
 from orchestration.datapath import find_data_file
 from orchestration.errors import Problem, ScenarioError
+from orchestration.fmu3_unit import Fmu3Unit
 from orchestration.fmu_unit import FmuFormatError, FmuUnit, LogRecord, read_description
 from orchestration.graph import AlgebraicLoopError, Link, Port, propagation_order
 from orchestration.scenario import LoadedScenario, VariableRef
@@ -47,9 +48,10 @@ class SystemPlan:
     limits: dict[Port, float]
     data_files: dict[str, Path] = field(default_factory=dict)
 
-    def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit]:
-        """Fresh FMU units in declaration order (nothing is instantiated yet)."""
-        return [FmuUnit(name, self.fmu_paths[name], self.parameters[name], on_log) for name in self.descriptions]
+    def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit | Fmu3Unit]:
+        """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit."""
+        return [(Fmu3Unit if desc.fmi_version.startswith("3.") else FmuUnit)(
+            name, self.fmu_paths[name], self.parameters[name], on_log) for name, desc in self.descriptions.items()]
 
     def create_algorithm(self, units: list[FmuUnit]) -> CouplingAlgorithm:
         """The coupling algorithm for these units, as the scenario chose it."""
@@ -107,10 +109,19 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), build: boo
         for pname, value in spec.parameters.items():
             if isinstance(value, DataFile):
                 try:
-                    found = find_data_file(value.name, data_dirs, loaded.path.parent)
+                    found = find_data_file(value.name, data_dirs, loaded.base_dir("units", name, "parameters", pname))
                 except FileNotFoundError as exc:
                     problems.append(loaded.problem(str(exc), "units", name, "parameters", pname))
                     continue
+                if value.kind == "record":
+                    from components.ground_motion_core import RecordError, read_record
+
+                    try:
+                        read_record(found)
+                    except RecordError as exc:
+                        problems.append(loaded.problem(f"unreadable record: {exc}", "units", name, "parameters",
+                                                       pname))
+                        continue
                 data_files[f"{name}.{pname}"] = found
                 value = str(found)
             if desc is None:

@@ -2,7 +2,8 @@
 
 ``load_tree(path)`` returns plain Python data plus a map from key path (a tuple) to
 (file, line), so that every later problem can point at the line a user wrote. A scalar
-tagged ``!data`` becomes a :class:`DataFile` (found later through the data path).
+tagged ``!data`` becomes a :class:`DataFile` (found later through the data path); ``!record``
+is a data file that must also read as a ground-motion record before any unit is loaded.
 Duplicate keys are errors (plain PyYAML silently keeps the last one).
 """
 
@@ -25,9 +26,10 @@ class DataFile:
     """A data file named in a scenario, resolved through the data-directory search path."""
 
     name: str
+    kind: str = "data"  # "data", or "record": checked with components.ground_motion_core.read_record
 
     def __str__(self) -> str:
-        return f"!data {self.name}"
+        return f"!{self.kind} {self.name}"
 
 
 def _construct(node: yaml.Node, path: KeyPath, lines: Lines, file: str, problems: list[Problem]) -> Any:
@@ -49,10 +51,10 @@ def _construct(node: yaml.Node, path: KeyPath, lines: Lines, file: str, problems
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_construct(item, (*path, k), lines, file, problems) for k, item in enumerate(node.value)]
-    if node.tag == "!data":
-        return DataFile(str(node.value))
+    if node.tag in ("!data", "!record") and isinstance(node, yaml.ScalarNode):
+        return DataFile(str(node.value), node.tag[1:])
     if node.tag.startswith("!"):
-        problems.append(Problem(f"unknown tag {node.tag} (only !data is known)", _dotted(path), file,
+        problems.append(Problem(f"unknown tag {node.tag} (known: !data, !record)", _dotted(path), file,
                                 node.start_mark.line + 1))
         return None
     loader = yaml.SafeLoader("")

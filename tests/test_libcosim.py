@@ -109,7 +109,7 @@ def test_c_isolator_in_libcosim(sosm, tmp_path):
     from components.c_isolator_build import ensure_c_isolator
 
     ensure_c_isolator()
-    lc_c, ours_c, _ = _both(tmp_path, "c", (DYADIC_STEP, "units.isolator.fmu=../fmus/MreIsolatorC.fmu"))
+    lc_c, ours_c, _ = _both(tmp_path, "c", (DYADIC_STEP, f"units.isolator.fmu={PROJECT / 'fmus' / 'MreIsolatorC.fmu'}"))
     worst = _compare(lc_c, ours_c)
     assert np.all(worst <= TOLERANCE), dict(zip(lc_c.names, worst, strict=True))
     # and libcosim with the C isolator gives the libcosim run with the Python one

@@ -35,7 +35,7 @@ def test_shipped_scenario_extends_the_system():
     sc = loaded.scenario
     assert sc.name == "kobe"
     assert list(sc.units) == ["ground", "building", "isolator", "controller"]
-    assert sc.units["ground"].parameters == {"scale": 0.5, "record": DataFile("kobe_1995_jma_ns.csv")}
+    assert sc.units["ground"].parameters == {"scale": 0.5, "record": DataFile("kobe_1995_jma_ns.csv", "record")}
     assert sc.simulation.step == 0.001 and sc.simulation.stop_time == 150.0 and sc.simulation.n_steps == 150_000
     assert str(sc.connections[4]) == "isolator.F -> building.F"
 

@@ -85,3 +85,13 @@ def test_sliding_variable_is_driven_to_zero_where_the_sign_condition_holds():
             tail.append(abs(v + gains.lam * x))
     assert max(tail) < 1e-3 * s0
     assert x > 0
+
+
+def test_the_controllers_isolator_model_is_table2():
+    """The controller keeps its own copy of the Table 2 coefficients it needs (no module shared
+    between FMUs); it must equal the isolator's."""
+    from components.sosm_controller_core import IsolatorModel
+
+    model = IsolatorModel()
+    for name in ("c0_0", "k0_0", "alpha_0", "alpha_1", "beta_0", "beta_1"):
+        assert getattr(model, name) == pytest.approx(getattr(TABLE2, name), rel=1e-12), name
