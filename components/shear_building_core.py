@@ -148,6 +148,7 @@ class ShearBuilding:
         self._acc_rows = np.hstack([self.A[n:], self.B[n:]])
         self._shear_k = np.asarray(params.k[1:], dtype=float)
         self._shear_c = np.asarray(params.c[1:], dtype=float)
+        self._output_rows = self._output_matrix()
 
     def discretization(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma) for step h, cached per step size."""
@@ -192,13 +193,26 @@ class ShearBuilding:
         z[n + 1] = F
         return self._acc_rows @ z
 
+    def _output_matrix(self) -> np.ndarray:
+        """All outputs are linear in z = [q, ag, F]: the rows of output_vector, built once."""
+        n = self.n_levels
+        m = 2 * n + 2
+        eye = np.eye(m)
+        x, v = eye[:n], eye[n : 2 * n]
+        ground = eye[2 * n]
+        arel = self._acc_rows
+        dx, dv = np.diff(x, axis=0), np.diff(v, axis=0)
+        shear = self._shear_k[:, None] * dx + self._shear_c[:, None] * dv
+        return np.vstack((x, v, arel + ground, arel, dx, shear))
+
     def output_vector(self, ag: float, F: float) -> np.ndarray:
         """[x (N), v (N), a absolute (N), a relative (N), drift (N-1), shear (N-1)] for the inputs."""
-        n = self.n_levels
-        x, v = self.q[:n], self.q[n:]
-        arel = self.relative_acceleration(ag, F)
-        dx, dv = np.diff(x), np.diff(v)
-        return np.concatenate((x, v, arel + ag, arel, dx, self._shear_k * dx + self._shear_c * dv))
+        n = len(self.q)
+        z = self._z
+        z[:n] = self.q
+        z[n] = ag
+        z[n + 1] = F
+        return self._output_rows @ z
 
     def absolute_acceleration(self, ag: float, F: float) -> np.ndarray:
         """Absolute accelerations per level [m/s^2] (relative + ground)."""
@@ -206,8 +220,10 @@ class ShearBuilding:
 
     def drifts(self) -> np.ndarray:
         """Inter-storey drifts x_j - x_{j-1}, j = 1..n [m]."""
-        return np.diff(self.x)
+        n = self.n_levels
+        return self.output_vector(0.0, 0.0)[4 * n : 5 * n - 1]
 
     def storey_shears(self) -> np.ndarray:
         """Shear force in storey j = 1..n [N]: k_j drift_j + c_j (v_j - v_{j-1})."""
-        return self._shear_k * np.diff(self.x) + self._shear_c * np.diff(self.v)
+        n = self.n_levels
+        return self.output_vector(0.0, 0.0)[5 * n - 1 :]

@@ -41,14 +41,14 @@ from components.ground_motion_core import GroundMotion, read_record
 from components.monolithic import SystemSetup, Trajectory, simulate_coupled
 from components.mre_isolator_core import TABLE2, GeneralizedCoefficients
 from components.shear_building_core import BuildingParams
-from components.sosm_controller_core import SosmGains
+from components.sosm_controller_core import HAND_PICKED_GAINS, SosmGains
 from orchestration.errors import ScenarioError
 from orchestration.runfolder import write_text
 from orchestration.session import plan_scenario
 from orchestration.study_config import LoadedStudy, ObjectiveSpec, StudySpec, TuningSpec, load_study
 from orchestration.system import SystemPlan
 
-DEFAULT_GAINS = SosmGains()  # README defaults: the tuning's first point
+DEFAULT_GAINS = HAND_PICKED_GAINS  # the hand-picked gains: the tuning's first point
 _IGNORED_ISOLATOR = {"x_identified", "x_limit", "i_max", "n_isolators"}
 
 

@@ -43,8 +43,7 @@ def reference(setup: SystemSetup, T: float, **tol) -> Trajectory:
     return simulate_radau(setup, T, np.arange(round(T / H) + 1) * H, **tol)
 
 
-CASES = [(record, current) for record in WINDOWS for current in (0.0, 3.0)] + [
-    ("elcentro_1940_ns.csv", None), ("hachinohe_1968_ns.csv", None)]
+CASES = [(record, current) for record in WINDOWS for current in (0.0, 3.0, None)]
 
 
 @pytest.mark.parametrize(("record", "current"), CASES,
@@ -58,20 +57,20 @@ def test_default_coupling_is_within_one_percent_of_radau(record, current):
     assert max(errors.values()) < 0.01, {k: f"{100 * e:.3f} %" for k, e in errors.items()}
 
 
-def test_sosm_on_northridge_is_as_close_as_the_reference_is_to_itself():
-    """Under Northridge the SOSM loop is ill-conditioned: two tight Radau solutions (rtol 1e-8 and
-    1e-10) already differ by more than 1 % on some peak. The co-simulation must stay within the
-    larger of 1 % and twice that spread of the reference."""
-    record = "northridge_1994_sylmar_ns.csv"
+def test_hand_picked_gains_make_sosm_on_kobe_ill_conditioned():
+    """With the hand-picked gains (before tuning) the SOSM loop under Kobe chatters at the current
+    limit and is ill-conditioned: two tight Radau solutions (rtol 1e-8 and 1e-10) differ by more
+    than 5 % on some peak, so no coupling can be held to 1 % there. The tuned default gains are
+    well-conditioned (previous test)."""
+    from components.sosm_controller_core import HAND_PICKED_GAINS
+
+    record = "kobe_1995_jma_ns.csv"
     T = WINDOWS[record]
-    setup = setup_for(record, None)
+    base = setup_for(record, None)
+    setup = SystemSetup(base.motion, passive_current=None, gains=HAND_PICKED_GAINS)
     tight = reference(setup, T).peaks()
     tighter = reference(setup, T, rtol=1e-10, atol=1e-14).peaks()
-    spread = relative_errors(tight, tighter)
-    got = relative_errors(simulate_coupled(setup, H, round(T / H)).peaks(), tighter)
-    assert max(spread.values()) > 0.005  # the ill-conditioning this test is about
-    for key in got:
-        assert got[key] <= max(0.01, 2 * spread[key]), key
+    assert max(relative_errors(tight, tighter).values()) > 0.05
 
 
 def test_fmu_cosimulation_within_one_percent_of_radau(tmp_path: Path):

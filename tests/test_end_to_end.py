@@ -144,3 +144,15 @@ def test_swapping_the_controller_for_a_constant_current_unit(tmp_path):
     assert swapped.result.complete and passive.result.complete
     for name in ("building.x_0", "building.a_3", "isolator.F", "controller.i"):
         assert np.array_equal(swapped.recorder.column(name), passive.recorder.column(name)), name
+
+
+def test_swapping_in_the_bouc_wen_isolator(tmp_path):
+    """The Bouc-Wen isolator FMU drops in through the scenario file alone and runs the whole system."""
+    out = run_scenario(PROJECT / "scenarios" / "elcentro_bouc_wen.yaml", ("simulation.stop_time=2",),
+                       out=tmp_path / "run", plots=False)
+    assert out.result.complete
+    assert out.units[2].description.model_identifier == "BoucWenIsolator"
+    F, x = out.recorder.column("isolator.F"), out.recorder.column("building.x_0")
+    assert np.max(np.abs(F)) > 0 and np.max(np.abs(x)) > 0
+    # a restoring force: it opposes the displacement over most of the run
+    assert np.mean(np.sign(F[x != 0]) == np.sign(x[x != 0])) > 0.5

@@ -95,3 +95,16 @@ def test_the_controllers_isolator_model_is_table2():
     model = IsolatorModel()
     for name in ("c0_0", "k0_0", "alpha_0", "alpha_1", "beta_0", "beta_1"):
         assert getattr(model, name) == pytest.approx(getattr(TABLE2, name), rel=1e-12), name
+
+
+def test_default_gains_are_the_tuned_gains():
+    """The controller's defaults are the gains the tuning procedure wrote (scenarios/sosm_gains.yaml)."""
+    import yaml
+
+    from .conftest import PROJECT
+
+    tuned = yaml.safe_load((PROJECT / "scenarios" / "sosm_gains.yaml").read_text())["gains"]
+    g = SosmGains()
+    assert (g.lam, g.rho, g.zeta, g.theta, g.i_max) == (
+        tuned["lambda"], tuned["rho"], tuned["zeta"], tuned["theta"], tuned["i_max"])
+    assert g.zeta * g.theta > g.rho  # Eq. (39)
