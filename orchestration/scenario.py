@@ -236,7 +236,8 @@ class LoadedScenario:
         return fmu if fmu.is_absolute() else (self.base_dir("units", unit, "fmu") / fmu).resolve()
 
 
-def _pydantic_problems(exc: ValidationError, lines: Lines, path: Path) -> list[Problem]:
+def validation_problems(exc: ValidationError, lines: Lines, path: Path) -> list[Problem]:
+    """Pydantic errors as located problems (file, line, key path), in the tool's wording."""
     problems = []
     for err in exc.errors():
         loc = tuple(err["loc"])
@@ -264,5 +265,5 @@ def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedSc
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(_pydantic_problems(exc, lines, path)) from None
+        raise ScenarioError(validation_problems(exc, lines, path)) from None
     return LoadedScenario(scenario, path, lines, data)

@@ -54,7 +54,7 @@ from pydantic import ValidationError
 
 from orchestration.errors import Problem, ScenarioError
 from orchestration.fmu_unit import FmuFormatError, read_description
-from orchestration.scenario import LoadedScenario, Scenario, _pydantic_problems, load_scenario
+from orchestration.scenario import LoadedScenario, Scenario, load_scenario, validation_problems
 from orchestration.system import SystemPlan, resolve
 from orchestration.yaml_source import DataFile, Lines, apply_override
 
@@ -562,7 +562,7 @@ def load_ssp(path: Path | str, overrides: tuple[str, ...] = (), workdir: Path | 
         try:
             scenario = Scenario.model_validate(data)
         except ValidationError as exc:
-            raise ScenarioError(_pydantic_problems(exc, lines, path)) from None
+            raise ScenarioError(validation_problems(exc, lines, path)) from None
     except BaseException:
         if owned:
             shutil.rmtree(target, ignore_errors=True)

@@ -15,7 +15,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from orchestration.errors import Problem, ScenarioError
-from orchestration.yaml_source import dotted, load_tree, locate
+from orchestration.scenario import validation_problems
+from orchestration.yaml_source import load_tree
 
 STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "on-off")
 UNCONTROLLED = "passive-off"
@@ -170,17 +171,7 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
     try:
         spec = StudySpec.model_validate(data)
     except ValidationError as exc:
-        problems = []
-        for err in exc.errors():
-            key = tuple(p for p in err["loc"] if not (isinstance(p, str) and ("[" in p or p.startswith("function"))))
-            file, line = locate(lines, key)
-            message = err["msg"].removeprefix("Value error, ")
-            if err["type"] == "extra_forbidden":
-                message = "unknown key"
-            elif err["type"] == "missing":
-                message = "required key is missing"
-            problems.append(Problem(message, dotted(key), file or str(path), line))
-        raise ScenarioError(problems) from None
+        raise ScenarioError(validation_problems(exc, lines, path)) from None
     study = LoadedStudy(spec, path, data)
     missing = [Problem(f"scenario file {study.scenario_path(r)} does not exist", f"records.{r}", str(path))
                for r in spec.records if not study.scenario_path(r).is_file()]
