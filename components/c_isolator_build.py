@@ -29,7 +29,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from components.build import DEFAULT_FMU_DIR, BuildError, complete_model_description
-from components.mre_isolator_core import CURRENT_MAX_A, DEVICE_LIMIT_M, IDENTIFIED_RANGE_M, TABLE2
+from components.mre_isolator_core import COEFFICIENT_DOCS, CURRENT_MAX_A, DEVICE_LIMIT_M, IDENTIFIED_RANGE_M, TABLE2
 
 COMPONENTS_DIR = Path(__file__).resolve().parent
 C_SOURCE = COMPONENTS_DIR / "c_isolator" / "mre_isolator.c"
@@ -54,16 +54,7 @@ class CVariable:
     macro: str | None = None  # C default macro fed from the Python value
 
 
-_COEFF_TEXT = {
-    "k0_0": ("N/(m.A)", "stiffness k0 slope per ampere (Table 2 k0^0)"),
-    "k0_1": ("N/m", "stiffness k0 at 0 A (Table 2 k0^1)"),
-    "c0_0": ("N.s/(m.A)", "damping c0 slope per ampere (Table 2 c0^0)"),
-    "c0_1": ("N.s/m", "damping c0 at 0 A (Table 2 c0^1)"),
-    "alpha_0": ("N/A", "sinh-spring scale alpha slope per ampere (Table 2 alpha^0)"),
-    "alpha_1": ("N", "sinh-spring scale alpha at 0 A (Table 2 alpha^1)"),
-    "beta_0": ("1/(m.A)", "sinh-spring shape beta slope per ampere (Table 2 beta^0)"),
-    "beta_1": ("1/m", "sinh-spring shape beta at 0 A (Table 2 beta^1)"),
-}
+_COEFF_TEXT = COEFFICIENT_DOCS
 
 
 def variables() -> list[CVariable]:

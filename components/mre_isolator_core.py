@@ -127,6 +127,18 @@ TABLE2_PAPER_UNITS: dict[str, float] = {
 
 TABLE2 = GeneralizedCoefficients.from_paper_units(**TABLE2_PAPER_UNITS)
 
+# Description and SI unit of each coefficient (FMU variables of every isolator implementation).
+COEFFICIENT_DOCS: dict[str, tuple[str, str]] = {
+    "k0_0": ("N/(m.A)", "stiffness k0 slope per ampere (Table 2 k0^0)"),
+    "k0_1": ("N/m", "stiffness k0 at 0 A (Table 2 k0^1)"),
+    "c0_0": ("N.s/(m.A)", "damping c0 slope per ampere (Table 2 c0^0)"),
+    "c0_1": ("N.s/m", "damping c0 at 0 A (Table 2 c0^1)"),
+    "alpha_0": ("N/A", "sinh-spring scale alpha slope per ampere (Table 2 alpha^0)"),
+    "alpha_1": ("N", "sinh-spring scale alpha at 0 A (Table 2 alpha^1)"),
+    "beta_0": ("1/(m.A)", "sinh-spring shape beta slope per ampere (Table 2 beta^0)"),
+    "beta_1": ("1/m", "sinh-spring shape beta at 0 A (Table 2 beta^1)"),
+}
+
 # Device limits stated in the paper (section 2): identified on +-8 mm, 15 mm maximum.
 IDENTIFIED_RANGE_M = 8.0 * MM
 DEVICE_LIMIT_M = 15.0 * MM

@@ -16,6 +16,7 @@ import copy
 import math
 
 from mre_isolator_core import (
+    COEFFICIENT_DOCS,
     CURRENT_MAX_A,
     DEVICE_LIMIT_M,
     IDENTIFIED_RANGE_M,
@@ -29,16 +30,7 @@ from pythonfmu.enums import Fmi2Status
 FMU_CORE_MODULES = ("mre_isolator_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 
-_COEFFICIENTS = {
-    "k0_0": ("N/(m.A)", "stiffness k0 slope per ampere (Table 2 k0^0)"),
-    "k0_1": ("N/m", "stiffness k0 at 0 A (Table 2 k0^1)"),
-    "c0_0": ("N.s/(m.A)", "damping c0 slope per ampere (Table 2 c0^0)"),
-    "c0_1": ("N.s/m", "damping c0 at 0 A (Table 2 c0^1)"),
-    "alpha_0": ("N/A", "sinh-spring scale alpha slope per ampere (Table 2 alpha^0)"),
-    "alpha_1": ("N", "sinh-spring scale alpha at 0 A (Table 2 alpha^1)"),
-    "beta_0": ("1/(m.A)", "sinh-spring shape beta slope per ampere (Table 2 beta^0)"),
-    "beta_1": ("1/m", "sinh-spring shape beta at 0 A (Table 2 beta^1)"),
-}
+_COEFFICIENTS = COEFFICIENT_DOCS
 
 
 class MreIsolator(Fmi2Slave):

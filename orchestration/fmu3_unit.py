@@ -28,7 +28,15 @@ from typing import Any
 import numpy as np
 
 from orchestration.errors import SimulationError, UnitCallError
-from orchestration.fmu_unit import FMI3_STATUS, FmuFormatError, LogRecord, _Handle, check_status, read_description
+from orchestration.fmu_unit import (
+    FMI3_STATUS,
+    FmuFormatError,
+    LogRecord,
+    _Handle,
+    check_status,
+    load_slave,
+    read_description,
+)
 from orchestration.unit import UnitDescription, Variable
 
 # FMI 3.0 type -> the master's type name (what scenario checks and connections understand)
@@ -135,20 +143,10 @@ class Fmu3Unit:
     # -- Unit interface --------------------------------------------------------------------------
     def setup(self, start_time: float, stop_time: float) -> None:
         """Extract, load, instantiate, apply parameters, enter initialization mode."""
-        from fmpy import extract
         from fmpy.fmi3 import FMU3Slave
 
         self._time = start_time
-        try:
-            self._dir = extract(str(self.path))
-            self._fmu = FMU3Slave(
-                guid=self._md.guid,
-                unzipDirectory=self._dir,
-                modelIdentifier=self._md.coSimulation.modelIdentifier,
-                instanceName=self.name,
-            )
-        except Exception as exc:
-            raise SimulationError(f"cannot load FMU {self.path}: {exc}", unit=self.name, time=start_time) from exc
+        self._dir, self._fmu = load_slave(FMU3Slave, self.path, self._md, self.name, start_time)
         self._f = self._fmu._functions
         try:
             self._fmu.instantiate(visible=False, loggingOn=True, eventModeUsed=False, earlyReturnAllowed=False,

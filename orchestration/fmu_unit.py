@@ -132,6 +132,22 @@ def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
     return desc, md
 
 
+def load_slave(slave_class: Any, path: Path, md: Any, name: str, start_time: float) -> tuple[str, Any]:
+    """Extract an FMU and load its library as fmpy's ``slave_class`` (FMU2Slave or FMU3Slave)."""
+    from fmpy import extract
+
+    directory = None
+    try:
+        directory = extract(str(path))
+        slave = slave_class(guid=md.guid, unzipDirectory=directory,
+                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    except Exception as exc:
+        if directory is not None:
+            shutil.rmtree(directory, ignore_errors=True)
+        raise SimulationError(f"cannot load FMU {path}: {exc}", unit=name, time=start_time) from exc
+    return directory, slave
+
+
 @dataclass
 class _Handle:
     vrs: Any
@@ -215,20 +231,10 @@ class FmuUnit:
     # -- Unit interface --------------------------------------------------------------------------
     def setup(self, start_time: float, stop_time: float) -> None:
         """Extract, load, instantiate, apply parameters, set up the experiment, enter initialization."""
-        from fmpy import extract
         from fmpy.fmi2 import FMU2Slave
 
         self._time = start_time
-        try:
-            self._dir = extract(str(self.path))
-            self._fmu = FMU2Slave(
-                guid=self._md.guid,
-                unzipDirectory=self._dir,
-                modelIdentifier=self._md.coSimulation.modelIdentifier,
-                instanceName=self.name,
-            )
-        except Exception as exc:
-            raise SimulationError(f"cannot load FMU {self.path}: {exc}", unit=self.name, time=start_time) from exc
+        self._dir, self._fmu = load_slave(FMU2Slave, self.path, self._md, self.name, start_time)
         self._f = self._fmu._functions
         self._callbacks = self._make_callbacks()
         try:
