@@ -166,12 +166,7 @@ class ShearBuilding:
 
     def step(self, ag: float, F: float, h: float) -> None:
         """Advance the state by h [s], inputs held."""
-        z = self._z
-        n = len(self.q)
-        z[:n] = self.q
-        z[n] = ag
-        z[n + 1] = F
-        self.q = self._fused(h) @ z
+        self.q = self._fused(h) @ self._state_and_inputs(ag, F)
         self.steps += 1
 
     @property
@@ -184,14 +179,18 @@ class ShearBuilding:
         """Relative velocities per level [m/s]."""
         return self.q[self.n_levels :]
 
-    def relative_acceleration(self, ag: float, F: float) -> np.ndarray:
-        """Relative accelerations per level [m/s^2] for the current state and inputs."""
+    def _state_and_inputs(self, ag: float, F: float) -> np.ndarray:
+        """z = [q, ag, F] in a reused buffer: everything the building computes is linear in it."""
         n = len(self.q)
         z = self._z
         z[:n] = self.q
         z[n] = ag
         z[n + 1] = F
-        return self._acc_rows @ z
+        return z
+
+    def relative_acceleration(self, ag: float, F: float) -> np.ndarray:
+        """Relative accelerations per level [m/s^2] for the current state and inputs."""
+        return self._acc_rows @ self._state_and_inputs(ag, F)
 
     def _output_matrix(self) -> np.ndarray:
         """All outputs are linear in z = [q, ag, F]: the rows of output_vector, built once."""
@@ -207,12 +206,7 @@ class ShearBuilding:
 
     def output_vector(self, ag: float, F: float) -> np.ndarray:
         """[x (N), v (N), a absolute (N), a relative (N), drift (N-1), shear (N-1)] for the inputs."""
-        n = len(self.q)
-        z = self._z
-        z[:n] = self.q
-        z[n] = ag
-        z[n + 1] = F
-        return self._output_rows @ z
+        return self._output_rows @ self._state_and_inputs(ag, F)
 
     def absolute_acceleration(self, ag: float, F: float) -> np.ndarray:
         """Absolute accelerations per level [m/s^2] (relative + ground)."""
