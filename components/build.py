@@ -11,6 +11,9 @@ modelDescription: ``UnitDefinitions`` for every unit the shell declares in
 ``Outputs`` and ``InitialUnknowns`` whose dependencies come from ``fmi_dependencies``
 (output name -> input names; outputs not listed depend on no input).
 
+The Linux binary pythonfmu 0.7 ships has an exit hook that uses freed memory; the build
+removes it (see ``pythonfmu_exit_fix``).
+
 Usage: ``python -m components.build [--dest fmus] [--force] [--storeys N ...]``.
 """
 
@@ -27,6 +30,8 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
+
+from components.pythonfmu_exit_fix import ExitHookError, remove_exit_hook
 
 COMPONENTS_DIR = Path(__file__).resolve().parent
 PROJECT_DIR = COMPONENTS_DIR.parent
@@ -90,7 +95,7 @@ class FmuSource:
     def sources(self) -> list[Path]:
         """Files whose change makes the FMU stale."""
         cores = [COMPONENTS_DIR / f"{m}.py" for m in self.core_modules]
-        return [self.script, *cores, Path(__file__).resolve()]
+        return [self.script, *cores, Path(__file__).resolve(), COMPONENTS_DIR / "pythonfmu_exit_fix.py"]
 
 
 class BuildError(RuntimeError):
@@ -308,9 +313,14 @@ def build(source: FmuSource, dest: Path) -> Path:
                     data = zin.read(item.filename)
                     if item.filename == "modelDescription.xml":
                         data = complete_model_description(data, units, deps, starts)
+                    elif item.filename.startswith("binaries/linux64/"):
+                        data = remove_exit_hook(data, f"{source.fmu_name}:{item.filename}")
                     zout.writestr(item, data)
             os.chmod(partial, 0o644)
             os.replace(partial, target)
+        except ExitHookError as exc:
+            Path(partial).unlink(missing_ok=True)
+            raise BuildError(str(exc)) from None
         except BaseException:
             Path(partial).unlink(missing_ok=True)
             raise

@@ -132,12 +132,6 @@ def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
     return desc, md
 
 
-def _runs_python(md: Any) -> bool:
-    """True for FMUs made with pythonfmu. Their library is not unloaded after use: it creates
-    Python objects in the host's interpreter that may outlive the instance and point into it."""
-    return (md.generationTool or "").lower().startswith("pythonfmu")
-
-
 def load_slave(slave_class: Any, path: Path, md: Any, name: str, start_time: float) -> tuple[str, Any]:
     """Extract an FMU and load its library as fmpy's ``slave_class`` (FMU2Slave or FMU3Slave)."""
     from fmpy import extract
@@ -334,7 +328,7 @@ class FmuUnit:
                     except Exception:  # a failed unit may refuse to terminate; free it anyway
                         pass
                 fmu.fmi2FreeInstance(fmu.component)
-            if fmu is not None and not _runs_python(self._md):
+            if fmu is not None:
                 fmu.freeLibrary()
         except Exception:
             pass
