@@ -51,6 +51,21 @@ _EXTRAPOLATION = (
 )
 
 
+# How a ``set`` op forms an input from the value arrays (the order is the native kernel's).
+RULES = ("start", "fresh", "mean", "extrapolated")
+
+
+@dataclass
+class ProgramOp:
+    """One operation of a communication step: ``set`` inputs, ``step`` a unit, or ``get`` outputs."""
+
+    kind: Literal["set", "step", "get"]
+    unit: Unit
+    handle: Any = None
+    slots: np.ndarray | None = None  # per value: its slot in the value arrays
+    rules: np.ndarray | None = None  # set only: per value, an index into RULES
+
+
 @dataclass
 class _Transfer:
     """Read some outputs of a unit into slots, or set some inputs from slots."""
@@ -250,11 +265,71 @@ class CouplingAlgorithm:
                 unit.step(t, h)
                 self._get_outputs(unit.name)
         self.propagate()
-        # history: the oldest array is reused for the new "now"
-        oldest = self._history.pop()
-        oldest[:] = self.values
-        self._history.insert(0, oldest)
+        # history shifts by one step (the arrays stay in place: the native executor holds them)
+        now, before, earlier = self._history
+        earlier[:] = before
+        before[:] = now
+        now[:] = self.values
         self._known += 1
+
+    # -- the same step as a flat program (for the native executor) --------------------------------
+    def program(self) -> list[ProgramOp]:
+        """One communication step as the sequence of transfers and calls :meth:`step` makes.
+
+        A ``set`` op forms each input by its rule (``RULES``) from the value arrays, a
+        ``get`` op writes outputs into slots. After the ops, the history shifts by one
+        step, as in :meth:`step`.
+        """
+        def set_op(plan: _InputPlan) -> ProgramOp:
+            rules = np.zeros(len(plan.buffer), dtype=np.intp)
+            slots = np.zeros(len(plan.buffer), dtype=np.intp)
+            for rule, (pos, group_slots) in (("start", plan.start), ("fresh", plan.fresh), ("mean", plan.mean),
+                                             ("extrapolated", plan.extrapolated)):
+                rules[pos] = RULES.index(rule)
+                slots[pos] = group_slots
+            return ProgramOp("set", plan.unit, plan.handle, slots, rules)
+
+        def get_op(name: str) -> list[ProgramOp]:
+            tr = self._outputs.get(name)
+            return [] if tr is None else [ProgramOp("get", tr.unit, tr.handle, tr.slots)]
+
+        plans = self._input_plans
+        ops: list[ProgramOp] = []
+        if self.scheme == "jacobi":
+            ops += [set_op(plans[u.name]) for u in self.order if u.name in plans]
+            ops += [ProgramOp("step", u) for u in self.order]
+            for unit in self.order:
+                ops += get_op(unit.name)
+        else:
+            for unit in self.order:
+                if unit.name in plans:
+                    ops.append(set_op(plans[unit.name]))
+                ops.append(ProgramOp("step", unit))
+                ops += get_op(unit.name)
+        for setter, getter in self._propagation:
+            fresh = np.full(len(setter.slots), RULES.index("fresh"), dtype=np.intp)
+            ops.append(ProgramOp("set", setter.unit, setter.handle, setter.slots, fresh))
+            ops.append(ProgramOp("get", getter.unit, getter.handle, getter.slots))
+        return ops
+
+    @property
+    def extrapolation(self) -> tuple[tuple[float, float, float], ...]:
+        """Mid-step extrapolation weights for 1, 2 and 3 known values (newest first)."""
+        return _EXTRAPOLATION
+
+    @property
+    def history(self) -> list[np.ndarray]:
+        """Values at t, t - h, t - 2h (the arrays :meth:`step` shifts)."""
+        return self._history
+
+    @property
+    def known(self) -> int:
+        """How many history entries hold real values."""
+        return self._known
+
+    @known.setter
+    def known(self, value: int) -> None:
+        self._known = value
 
     def value(self, port: Port) -> float:
         """Present value of a slotted output."""

@@ -13,7 +13,7 @@ import shutil
 import weakref
 import zipfile
 from collections.abc import Callable, Sequence
-from ctypes import byref, c_double, c_uint, c_void_p
+from ctypes import byref, c_double, c_uint, c_void_p, cast
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -293,6 +293,27 @@ class FmuUnit:
         self._time = t
         self._check("fmi2DoStep", self._f["fmi2DoStep"](self._fmu.component, t, h, 1))
         self._time = t + h
+
+    # -- for the native executor (orchestration.native_stepper) ----------------------------------
+    def native_functions(self) -> tuple[int, int, int, int] | None:
+        """Addresses of (component, fmi2SetReal, fmi2GetReal, fmi2DoStep) while instantiated."""
+        if self._fmu is None or not self._instantiated:
+            return None
+        return (self._fmu.component, *(cast(self._f[name], c_void_p).value
+                                       for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")))
+
+    @property
+    def time(self) -> float | None:
+        """The unit's time as error messages report it: t before a step, t + h after it [s]."""
+        return self._time
+
+    @time.setter
+    def time(self, value: float) -> None:
+        self._time = value
+
+    def raise_status(self, function: str, status: int) -> None:
+        """Translate a status an FMI function of this unit returned elsewhere (raises above warning)."""
+        self._check(function, status)
 
     def get_values(self, names: Sequence[str]) -> dict[str, Any]:
         """Values of variables of any type by name (slow path, for parameters and checks)."""

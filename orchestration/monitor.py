@@ -21,6 +21,11 @@ class Monitor:
         self._limit_ports = list(limits)
         self._limits = np.asarray(list(limits.values()), dtype=float)
 
+    @property
+    def limits(self) -> dict[Port, float]:
+        """Watched output -> largest admissible absolute value."""
+        return dict(zip(self._limit_ports, self._limits.tolist(), strict=True))
+
     def record(self, k: int, t: float) -> None:
         values = self._values
         if not np.isfinite(values).all():

@@ -86,6 +86,9 @@ class SimulationSpec(_Strict):
         "step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
     )
     order: list[str] | None = None
+    executor: Literal["auto", "native", "python"] = Field(
+        "auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
+    )
 
     @model_validator(mode="after")
     def _grid(self) -> SimulationSpec:

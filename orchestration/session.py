@@ -97,7 +97,7 @@ def run_plan(
     monitor = Monitor(algorithm, plan.limits)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     result = execute(algorithm, sc.simulation.start_time, sc.simulation.stop_time, sc.simulation.step,
-                     [recorder, monitor], progress=tick, stop_request=stop)
+                     [recorder, monitor], progress=tick, stop_request=stop, executor=sc.simulation.executor)
     if bar is not None:
         bar.close()
 
@@ -111,6 +111,8 @@ def run_plan(
         "steps_done": result.steps_done,
         "n_steps": result.n_steps,
         "wall_time_s": result.wall_time,
+        "executor": result.executor,
+        **({"executor_note": result.executor_note} if result.executor_note else {}),
         "unit_warnings": warnings,
         **summarize(recorder, sc.report),
     }
