@@ -23,7 +23,7 @@ import os
 import subprocess
 import tempfile
 from collections.abc import Sequence
-from ctypes import POINTER, Structure, c_double, c_long, c_void_p
+from ctypes import POINTER, Structure, c_double, c_int64, c_void_p
 from pathlib import Path
 from typing import Any
 
@@ -46,22 +46,22 @@ class NativeUnavailable(RuntimeError):
 
 class _Op(Structure):
     _fields_ = [
-        ("kind", c_long), ("unit", c_long), ("n", c_long),
+        ("kind", c_int64), ("unit", c_int64), ("n", c_int64),
         ("vrs", c_void_p), ("buf", c_void_p), ("slots", c_void_p), ("rules", c_void_p),
     ]
 
 
 class _Kernel(Structure):
     _fields_ = [
-        ("n_units", c_long), ("components", c_void_p), ("set_real", c_void_p), ("get_real", c_void_p),
+        ("n_units", c_int64), ("components", c_void_p), ("set_real", c_void_p), ("get_real", c_void_p),
         ("do_step", c_void_p), ("unit_time", c_void_p),
-        ("n_ops", c_long), ("ops", c_void_p),
-        ("n_values", c_long), ("values", c_void_p), ("now", c_void_p), ("before", c_void_p),
-        ("earlier", c_void_p), ("known", c_long), ("extrapolation", c_void_p),
-        ("start", c_double), ("stop", c_double), ("step", c_double), ("n_steps", c_long),
-        ("n_record", c_long), ("record_slots", c_void_p), ("record_time", c_void_p), ("record_data", c_void_p),
-        ("check_finite", c_long), ("n_limits", c_long), ("limit_slots", c_void_p), ("limits", c_void_p),
-        ("failed_op", c_long), ("failed_status", c_long),
+        ("n_ops", c_int64), ("ops", c_void_p),
+        ("n_values", c_int64), ("values", c_void_p), ("now", c_void_p), ("before", c_void_p),
+        ("earlier", c_void_p), ("known", c_int64), ("extrapolation", c_void_p),
+        ("start", c_double), ("stop", c_double), ("step", c_double), ("n_steps", c_int64),
+        ("n_record", c_int64), ("record_slots", c_void_p), ("record_time", c_void_p), ("record_data", c_void_p),
+        ("check_finite", c_int64), ("n_limits", c_int64), ("limit_slots", c_void_p), ("limits", c_void_p),
+        ("failed_op", c_int64), ("failed_status", c_int64),
     ]
 
 
@@ -90,7 +90,7 @@ def kernel_library() -> Any:
         library = ctypes.CDLL(str(target))
     except OSError as exc:
         raise NativeUnavailable(f"cannot load the compiled kernel {target}: {exc}") from None
-    library.run_steps.argtypes = [POINTER(_Kernel), c_long, c_long, POINTER(c_long)]
+    library.run_steps.argtypes = [POINTER(_Kernel), c_int64, c_int64, POINTER(c_int64)]
     library.run_steps.restype = ctypes.c_int
     _LIBRARY = library
     return library
@@ -186,7 +186,7 @@ class NativeStepper:
 
     def run(self, first: int, last: int, t_of: Any) -> None:
         """Steps ``first`` .. ``last - 1``, then ``done`` = steps finished; raises as the Python path would."""
-        done = c_long(first)
+        done = c_int64(first)
         code = self._library.run_steps(ctypes.byref(self._kernel), first, last, ctypes.byref(done))
         self.done = done.value
         self._algorithm.known = self._kernel.known
