@@ -79,8 +79,12 @@ def kernel_library() -> Any:
     if _LIBRARY is not None:
         return _LIBRARY
     compiler = os.environ.get("CC", "cc")
+    try:
+        folder = cache_dir()
+    except (RuntimeError, KeyError) as exc:  # no home folder to put a cache in
+        raise NativeUnavailable(f"no cache folder for the kernel (set MRE_COSIM_CACHE): {exc}") from None
     digest = hashlib.sha256(SOURCE.read_bytes() + " ".join((compiler, *CFLAGS)).encode()).hexdigest()[:16]
-    target = cache_dir() / f"step_kernel-{digest}.so"
+    target = folder / f"step_kernel-{digest}.so"
     if not target.exists():
         try:
             _compile(compiler, target)
@@ -131,6 +135,9 @@ class NativeStepper:
         monitors = [o for o in observers if isinstance(o, Monitor)]
         if len(recorders) + len(monitors) != len(observers) or len(recorders) > 1 or len(monitors) > 1:
             raise NativeUnavailable("observers other than one Recorder and one Monitor")
+        arrays = [algorithm.values, *algorithm.history, *(a for r in recorders for a in (r.time, r.data))]
+        if not all(a.dtype == np.float64 and a.flags.c_contiguous for a in arrays):
+            raise NativeUnavailable("value or recording arrays that are not contiguous float64")
         self._library = kernel_library()
         self._algorithm = algorithm
         self._units = units
