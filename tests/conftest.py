@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -12,6 +16,12 @@ if str(PROJECT) not in sys.path:
     sys.path.insert(0, str(PROJECT))
 
 SHARED_RECORDS = PROJECT.parent / "shared" / "ground_motions"
+
+# The native executor's compiled kernel goes to a per-session folder (also for the CLI runs
+# the tests start), so the tests need no writable home folder.
+if "MRE_COSIM_CACHE" not in os.environ:
+    os.environ["MRE_COSIM_CACHE"] = tempfile.mkdtemp(prefix="mre-cosim-cache-")
+    atexit.register(shutil.rmtree, os.environ["MRE_COSIM_CACHE"], ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
