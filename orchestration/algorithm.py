@@ -64,6 +64,7 @@ class ProgramOp:
     handle: Any = None
     slots: np.ndarray | None = None  # per value: its slot in the value arrays
     rules: np.ndarray | None = None  # set only: per value, an index into RULES
+    plan: Any = None  # set of a unit's connected inputs: its _InputPlan (the rules grouped)
 
 
 @dataclass
@@ -134,6 +135,7 @@ class CouplingAlgorithm:
                 self._outputs[name] = self._transfer(unit, [p for p, _ in outs], [k for _, k in outs])
         self._input_plans = self._plan_inputs()
         self._propagation = self._plan_propagation()
+        self._program = self._build_program()
 
     def _transfer(self, unit: Unit, ports: list[Port], slots: list[int]) -> _Transfer:
         refs = [self._desc[unit.name].variables[p[1]].vr for p in ports]
@@ -246,48 +248,44 @@ class CouplingAlgorithm:
         self.propagate()
 
     def step(self, t: float, h: float) -> None:
-        """One communication step from t to t + h [s]."""
-        plans = self._input_plans
-        if self.scheme == "jacobi":
-            for unit in self.order:
-                plan = plans.get(unit.name)
-                if plan is not None:
-                    self._set_inputs(plan)
-            for unit in self.order:
-                unit.step(t, h)
-            for unit in self.order:
-                self._get_outputs(unit.name)
-        else:
-            for unit in self.order:
-                plan = plans.get(unit.name)
-                if plan is not None:
-                    self._set_inputs(plan)
-                unit.step(t, h)
-                self._get_outputs(unit.name)
-        self.propagate()
+        """One communication step from t to t + h [s]: the ops of :meth:`program`, then the history shift."""
+        values = self.values
+        for op in self._program:
+            if op.kind == "step":
+                op.unit.step(t, h)
+            elif op.kind == "get":
+                values[op.slots] = op.unit.get_real(op.handle)
+            elif op.plan is not None:
+                self._set_inputs(op.plan)
+            else:
+                op.unit.set_real(op.handle, values[op.slots])
         # history shifts by one step (the arrays stay in place: the native executor holds them)
         now, before, earlier = self._history
         earlier[:] = before
         before[:] = now
-        now[:] = self.values
+        now[:] = values
         self._known += 1
 
-    # -- the same step as a flat program (for the native executor) --------------------------------
     def program(self) -> list[ProgramOp]:
-        """One communication step as the sequence of transfers and calls :meth:`step` makes.
+        """One communication step as a flat list of operations, the one :meth:`step` carries out.
 
-        A ``set`` op forms each input by its rule (``RULES``) from the value arrays, a
-        ``get`` op writes outputs into slots. After the ops, the history shifts by one
-        step, as in :meth:`step`.
+        Jacobi: every unit's inputs, then every step, then every output read; Gauss-Seidel:
+        per unit in order, its inputs, its step, its outputs. Then feedthrough propagation
+        (inputs from the end-of-step values, outputs re-read). A ``set`` op forms each input
+        by its rule (``RULES``) from the value arrays; a ``get`` op writes outputs into slots.
+        The native executor runs the same list.
         """
+        return self._program
+
+    def _build_program(self) -> list[ProgramOp]:
         def set_op(plan: _InputPlan) -> ProgramOp:
             rules = np.zeros(len(plan.buffer), dtype=np.intp)
             slots = np.zeros(len(plan.buffer), dtype=np.intp)
-            for rule, (pos, group_slots) in (("start", plan.start), ("fresh", plan.fresh), ("mean", plan.mean),
-                                             ("extrapolated", plan.extrapolated)):
+            for rule in RULES:
+                pos, group_slots = getattr(plan, rule)
                 rules[pos] = RULES.index(rule)
                 slots[pos] = group_slots
-            return ProgramOp("set", plan.unit, plan.handle, slots, rules)
+            return ProgramOp("set", plan.unit, plan.handle, slots, rules, plan)
 
         def get_op(name: str) -> list[ProgramOp]:
             tr = self._outputs.get(name)

@@ -34,9 +34,19 @@ def fmu_dir(tmp_path_factory) -> Path:
     return dest
 
 
-@pytest.fixture(scope="session")
-def elcentro() -> Path:
-    path = SHARED_RECORDS / "elcentro_1940_ns.csv"
+def shared_record(name: str) -> Path:
+    """A record of ../shared/ground_motions; the calling test is skipped if it is not there."""
+    path = SHARED_RECORDS / name
     if not path.is_file():
         pytest.skip(f"ground-motion record not found: {path}")
     return path
+
+
+@pytest.fixture(scope="session")
+def elcentro() -> Path:
+    return shared_record("elcentro_1940_ns.csv")
+
+
+@pytest.fixture(scope="session")
+def kobe() -> Path:
+    return shared_record("kobe_1995_jma_ns.csv")

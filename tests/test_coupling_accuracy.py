@@ -17,7 +17,7 @@ from components.ground_motion_core import GroundMotion, read_record
 from components.monolithic import SystemSetup, Trajectory, simulate_coupled, simulate_radau
 from orchestration.session import run_scenario
 
-from .conftest import PROJECT, SHARED_RECORDS
+from .conftest import PROJECT, shared_record
 
 H = 1e-3
 WINDOWS = {  # record: simulated window [s]
@@ -29,10 +29,7 @@ WINDOWS = {  # record: simulated window [s]
 
 
 def setup_for(record: str, current: float | None) -> SystemSetup:
-    path = SHARED_RECORDS / record
-    if not path.is_file():
-        pytest.skip(f"record not available: {path}")
-    return SystemSetup(GroundMotion(read_record(path), scale=0.5), passive_current=current)
+    return SystemSetup(GroundMotion(read_record(shared_record(record)), scale=0.5), passive_current=current)
 
 
 def relative_errors(got: dict[str, float], ref: dict[str, float]) -> dict[str, float]:

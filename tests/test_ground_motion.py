@@ -10,7 +10,7 @@ import pytest
 
 from components.ground_motion_core import G, GroundMotion, RecordError, read_record
 
-from .conftest import SHARED_RECORDS
+from .conftest import shared_record
 
 
 def write(tmp_path: Path, name: str, text: str) -> Path:
@@ -89,9 +89,7 @@ SOURCES = {  # file: (dt, npts, PGA in g) from shared/ground_motions/SOURCES.md
 
 @pytest.mark.parametrize("name", sorted(SOURCES))
 def test_shared_records_match_their_sources(name):
-    path = SHARED_RECORDS / name
-    if not path.is_file():
-        pytest.skip(f"record not available: {path}")
+    path = shared_record(name)
     dt, npts, pga = SOURCES[name]
     rec = read_record(path)
     assert len(rec.time) == npts

@@ -29,7 +29,7 @@ from orchestration.session import run_plan
 from orchestration.ssp import export_ssp, load_ssp
 from orchestration.system import resolve
 
-from .conftest import SHARED_RECORDS
+from .conftest import shared_record
 
 PROJECT = Path(__file__).resolve().parent.parent
 KOBE = PROJECT / "scenarios" / "kobe.yaml"
@@ -53,9 +53,7 @@ def _compare(lc: LibcosimRun, ours: Recorder) -> np.ndarray:
 
 def _both(tmp: Path, name: str, overrides: tuple[str, ...]) -> tuple[LibcosimRun, Recorder, object]:
     """Export Kobe with overrides, run the package in libcosim and in our master (libcosim's scheme)."""
-    record = SHARED_RECORDS / "kobe_1995_jma_ns.csv"
-    if not record.is_file():
-        pytest.skip(f"ground-motion record not found: {record}")
+    shared_record("kobe_1995_jma_ns.csv")
     package = export_ssp(KOBE, tmp / f"{name}.ssp", ("simulation.algorithm=jacobi", STOP, *overrides))
     loaded = load_ssp(package)
     plan = resolve(libcosim_scheme(loaded))

@@ -19,22 +19,12 @@ from orchestration.session import plan_scenario, run_plan
 from orchestration.ssp import SSD_FILE, export_ssp, load_ssp
 from orchestration.system import resolve
 
-from .conftest import SHARED_RECORDS
-
 PROJECT = Path(__file__).resolve().parent.parent
 KOBE = PROJECT / "scenarios" / "kobe.yaml"
 
 
 @pytest.fixture(scope="module")
-def kobe_record() -> Path:
-    path = SHARED_RECORDS / "kobe_1995_jma_ns.csv"
-    if not path.is_file():
-        pytest.skip(f"ground-motion record not found: {path}")
-    return path
-
-
-@pytest.fixture(scope="module")
-def kobe_ssp(kobe_record, tmp_path_factory) -> Path:
+def kobe_ssp(kobe, tmp_path_factory) -> Path:
     return export_ssp(KOBE, tmp_path_factory.mktemp("ssp") / "kobe.ssp")
 
 
@@ -59,15 +49,15 @@ def _problems(exc: pytest.ExceptionInfo) -> list:
 # -- the package --------------------------------------------------------------------------------
 
 
-def test_package_layout_and_schema(kobe_ssp, kobe_record):
+def test_package_layout_and_schema(kobe_ssp, kobe):
     with zipfile.ZipFile(kobe_ssp) as z:
         names = set(z.namelist())
-        assert z.read(f"resources/{kobe_record.name}") == kobe_record.read_bytes()
+        assert z.read(f"resources/{kobe.name}") == kobe.read_bytes()
         for fmu in ("GroundMotionSource", "ShearBuilding", "MreIsolator", "SosmCurrentController"):
             assert z.read(f"resources/{fmu}.fmu") == (PROJECT / "fmus" / f"{fmu}.fmu").read_bytes()
     assert names == {SSD_FILE, "resources/GroundMotionSource.fmu", "resources/ShearBuilding.fmu",
                      "resources/MreIsolator.fmu", "resources/SosmCurrentController.fmu",
-                     "resources/ground.ssv", "resources/isolator.ssv", f"resources/{kobe_record.name}"}
+                     "resources/ground.ssv", "resources/isolator.ssv", f"resources/{kobe.name}"}
     # fmpy's own reader validates the SSD and every referenced .ssv against the SSP 1.0 schemas
     ssd = read_ssd(str(kobe_ssp), validate=True)
     assert ssd.version == "1.0" and ssd.name == "kobe"
@@ -94,15 +84,15 @@ def test_components_connectors_and_connections(kobe_ssp):
     assert 'unit="N"' in root and '<ssc:Unit name="N">' in root
 
 
-def test_parameter_values_in_ssv(kobe_ssp, kobe_record):
+def test_parameter_values_in_ssv(kobe_ssp, kobe):
     ground = read_ssv(str(kobe_ssp), resource="resources/ground.ssv", validate=True)
     isolator = read_ssv(str(kobe_ssp), resource="resources/isolator.ssv", validate=True)
     values = {p.name: (p.type, p.value) for p in ground.parameters}
-    assert values == {"scale": ("Real", "0.5"), "record": ("String", f"resources/{kobe_record.name}")}
+    assert values == {"scale": ("Real", "0.5"), "record": ("String", f"resources/{kobe.name}")}
     assert {p.name: (p.type, p.value) for p in isolator.parameters} == {"n_isolators": ("Integer", "2")}
 
 
-def test_loaded_package_is_the_same_scenario(kobe_ssp, kobe_record):
+def test_loaded_package_is_the_same_scenario(kobe_ssp, kobe):
     original = load_scenario(KOBE).scenario
     loaded = load_ssp(kobe_ssp)
     try:
@@ -111,7 +101,7 @@ def test_loaded_package_is_the_same_scenario(kobe_ssp, kobe_record):
             assert getattr(sc, field) == getattr(original, field), field
         assert set(sc.units) == set(original.units)
         record = sc.units["ground"].parameters["record"]
-        assert Path(record.name).read_bytes() == kobe_record.read_bytes()
+        assert Path(record.name).read_bytes() == kobe.read_bytes()
         assert Path(sc.units["isolator"].fmu).read_bytes() == (PROJECT / "fmus" / "MreIsolator.fmu").read_bytes()
         assert sc.units["isolator"].parameters == {"n_isolators": 2}
         workdir = loaded.workdir
@@ -135,7 +125,7 @@ def test_running_the_package_equals_running_the_yaml(kobe_ssp, tmp_path):
     assert "kobe.ssp" in (from_ssp.folder / "manifest.json").read_text()
 
 
-def test_delayed_connections_survive_the_round_trip(kobe_record, tmp_path):
+def test_delayed_connections_survive_the_round_trip(kobe, tmp_path):
     loaded = load_scenario(KOBE)
     sc = loaded.scenario
     connections = [c.model_copy(update={"delayed": str(c) .startswith("isolator.F")}) for c in sc.connections]
@@ -211,15 +201,15 @@ def test_schema_violation_is_reported_with_its_line(kobe_ssp, tmp_path):
     assert problem.line is not None
 
 
-def test_missing_parameter_set_and_data_file(kobe_ssp, kobe_record, tmp_path):
+def test_missing_parameter_set_and_data_file(kobe_ssp, kobe, tmp_path):
     no_ssv = _rewrite(kobe_ssp, tmp_path / "a.ssp", "resources/isolator.ssv", lambda t: None)
     with pytest.raises(ScenarioError, match=r"component 'isolator': parameter set 'resources/isolator\.ssv' is not"):
         load_ssp(no_ssv)
-    no_record = _rewrite(kobe_ssp, tmp_path / "b.ssp", f"resources/{kobe_record.name}", lambda t: None)
+    no_record = _rewrite(kobe_ssp, tmp_path / "b.ssp", f"resources/{kobe.name}", lambda t: None)
     with pytest.raises(ScenarioError) as exc:
         load_ssp(no_record)
     assert [p.message for p in _problems(exc)] == [
-        f"component 'ground', parameter 'record': data file 'resources/{kobe_record.name}' is not in the package"]
+        f"component 'ground', parameter 'record': data file 'resources/{kobe.name}' is not in the package"]
 
 
 def test_unknown_parameter_is_reported_at_its_ssv_line(kobe_ssp, tmp_path):
@@ -246,7 +236,7 @@ def test_not_a_package(tmp_path):
         load_ssp(empty)
 
 
-def test_cli_export_and_check(kobe_record, kobe_ssp, tmp_path):
+def test_cli_export_and_check(kobe, kobe_ssp, tmp_path):
     out = tmp_path / "cli.ssp"
     script = str(PROJECT / "orchestration" / "ssp.py")
     done = subprocess.run([sys.executable, script, "export", str(KOBE), str(out)], capture_output=True, text=True,

@@ -110,6 +110,15 @@ def _finish(
     )
 
 
+def _run_ffoa(objective, typical: list[float], rng: np.random.Generator, settings: FFOASettings | None,
+              acceptance: Acceptance):
+    """(FFOA result, optimisation seconds, (settled, reason)) for one objective."""
+    t0 = time.perf_counter()
+    res = ffoa_minimize(objective, typical, rng, settings)
+    seconds = time.perf_counter() - t0
+    return res, seconds, judge_convergence(res.history, acceptance.window, acceptance.rel_tol)
+
+
 def identify_hyperbolic_ffoa(
     data: FitData,
     rng: np.random.Generator,
@@ -118,24 +127,11 @@ def identify_hyperbolic_ffoa(
 ) -> IdentResult:
     """Hyperbolic model by FFOA (paper). Run time includes only the optimisation."""
     acceptance = acceptance or Acceptance()
-    t0 = time.perf_counter()
-    res = ffoa_minimize(
-        hyperbolic_objective(data), [HYPERBOLIC_TYPICAL[p] for p in HYPERBOLIC_PARAMS], rng, settings
-    )
-    seconds = time.perf_counter() - t0
+    res, seconds, settled = _run_ffoa(hyperbolic_objective(data), [HYPERBOLIC_TYPICAL[p] for p in HYPERBOLIC_PARAMS],
+                                      rng, settings, acceptance)
     params = {**dict(zip(HYPERBOLIC_PARAMS, map(float, res.best), strict=True)), "F0": data.F0}
-    settled = judge_convergence(res.history, acceptance.window, acceptance.rel_tol)
-    return _finish(
-        "hyperbolic-ffoa",
-        data,
-        params,
-        hyperbolic_predict(data, params),
-        seconds,
-        settled,
-        acceptance,
-        res.history,
-        res.path,
-    )
+    return _finish("hyperbolic-ffoa", data, params, hyperbolic_predict(data, params), seconds, settled, acceptance,
+                   res.history, res.path)
 
 
 def identify_bouc_wen_ffoa(
@@ -146,17 +142,13 @@ def identify_bouc_wen_ffoa(
 ) -> IdentResult:
     """Bouc-Wen model (delta = 1/mm) by FFOA (paper)."""
     acceptance = acceptance or Acceptance()
-    t0 = time.perf_counter()
-    res = ffoa_minimize(
-        bouc_wen_objective(data), [BOUC_WEN_TYPICAL[p] for p in BOUC_WEN_PARAMS], rng, settings
-    )
-    seconds = time.perf_counter() - t0
+    res, seconds, settled = _run_ffoa(bouc_wen_objective(data), [BOUC_WEN_TYPICAL[p] for p in BOUC_WEN_PARAMS],
+                                      rng, settings, acceptance)
     params = {
         **dict(zip(BOUC_WEN_PARAMS, map(float, res.best), strict=True)),
         "delta": BW_DELTA_MM,
         "F0": data.F0,
     }
-    settled = judge_convergence(res.history, acceptance.window, acceptance.rel_tol)
     pred = bouc_wen_predict(data, params) if np.all(np.isfinite(res.best)) else np.full_like(data.F, np.nan)
     return _finish("bouc_wen-ffoa", data, params, pred, seconds, settled, acceptance, res.history, res.path)
 
