@@ -7,7 +7,7 @@ time, each for a 2 s stop time (or, with ``--interrupt``, the full record stoppe
 SIGINT after a random 0.2 to 3 s), and counts exits other than the expected code (0, or 1
 when interrupted). ``--upstream`` runs the same FMUs with pythonfmu's own Linux binary put
 back (its exit hook intact) to show the failure the build's fix removes (see
-``components/pythonfmu_exit_fix.py``). The failures are rare (a few per cent), so use
+``components/build/exit_fix.py``). The failures are rare (a few per cent), so use
 hundreds of runs.
 """
 

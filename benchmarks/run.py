@@ -30,13 +30,14 @@ import numpy as np
 PROJECT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(PROJECT))
 
-from components.build import build, discover  # noqa: E402
-from components.ground_motion_core import GroundMotion, read_record  # noqa: E402
-from components.monolithic import SystemSetup, simulate_coupled, simulate_radau  # noqa: E402
-from orchestration.session import plan_scenario, run_plan  # noqa: E402
+from components.build.pythonfmu_units import build, discover  # noqa: E402
+from components.physics.ground_motion_core import GroundMotion, read_record  # noqa: E402
+from components.physics.monolithic import SystemSetup, simulate_coupled, simulate_radau  # noqa: E402
+from orchestration.master.session import run_plan  # noqa: E402
+from orchestration.project import plan_scenario  # noqa: E402
 
 SCENARIOS = PROJECT / "scenarios"
-RECORDS = PROJECT.parent / "shared" / "ground_motions"
+RECORDS = PROJECT / "scenarios" / "records"
 
 
 def table(header: list[str], rows: list[list[object]]) -> str:
@@ -108,8 +109,8 @@ def _raw_fmu_cost(plan, n_steps: int) -> float:
 
 def bench_libcosim(tmp: Path, stop: float) -> str:
     try:
-        from orchestration.libcosim_export import libcosim_available, libcosim_scheme
-        from orchestration.ssp import export_ssp
+        from orchestration.interop.libcosim_export import libcosim_available, libcosim_scheme
+        from orchestration.interop.ssp import export_ssp
     except ImportError as exc:
         return f"## 2. Master overhead vs libcosim\n\nnot measured: {exc}\n"
     reason = libcosim_available()
@@ -184,7 +185,8 @@ def bench_monolithic(tmp: Path, stop: float) -> str:
     diff = np.max(np.abs(out.recorder.column("building.a_3") - ref.a[:, 3]))
     return (f"## 3. FMU co-simulation vs in-process monolithic stepping (El Centro, SOSM, {stop:g} s, 1 ms)\n\n"
             + table(["engine", "wall [s]"], [["FMU co-simulation (this master)", f"{wall:.2f}"],
-                                            ["in-process physics cores (components.monolithic)", f"{mono:.2f}"]])
+                                            ["in-process physics cores (components.physics.monolithic)",
+                                             f"{mono:.2f}"]])
             + f"\n\nRatio: **{wall / mono:.1f}×**. Largest difference in building.a_3: {diff:.1e} m/s².\n")
 
 

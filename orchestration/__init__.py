@@ -1,1 +1,1 @@
-"""Co-simulation master: scenarios, the unit interface, the stepping algorithm, execution and recording."""
+"""mre-cosim: the engine (master/), studies, interop, the Python API (api.py) and the command-line tools."""

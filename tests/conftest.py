@@ -15,7 +15,7 @@ PROJECT = Path(__file__).resolve().parent.parent
 if str(PROJECT) not in sys.path:
     sys.path.insert(0, str(PROJECT))
 
-SHARED_RECORDS = PROJECT.parent / "shared" / "ground_motions"
+RECORDS = PROJECT / "scenarios" / "records"  # the records the project ships
 
 # The native executor's compiled kernel goes to a per-session folder (also for the CLI runs
 # the tests start), so the tests need no writable home folder.
@@ -27,26 +27,25 @@ if "MRE_COSIM_CACHE" not in os.environ:
 @pytest.fixture(scope="session")
 def fmu_dir(tmp_path_factory) -> Path:
     """All project FMUs, freshly built into a temporary folder."""
-    from components.build import ensure_built
+    from components.build.project_fmus import ensure_built
 
     dest = tmp_path_factory.mktemp("fmus")
     ensure_built(dest, force=True)
     return dest
 
 
-def shared_record(name: str) -> Path:
-    """A record of ../shared/ground_motions; the calling test is skipped if it is not there."""
-    path = SHARED_RECORDS / name
-    if not path.is_file():
-        pytest.skip(f"ground-motion record not found: {path}")
+def shipped_record(name: str) -> Path:
+    """A record the project ships in scenarios/records (a missing one fails the test: it is part of the repository)."""
+    path = RECORDS / name
+    assert path.is_file(), f"ground-motion record missing from the repository: {path}"
     return path
 
 
 @pytest.fixture(scope="session")
 def elcentro() -> Path:
-    return shared_record("elcentro_1940_ns.csv")
+    return shipped_record("elcentro_1940_ns.csv")
 
 
 @pytest.fixture(scope="session")
 def kobe() -> Path:
-    return shared_record("kobe_1995_jma_ns.csv")
+    return shipped_record("kobe_1995_jma_ns.csv")

@@ -6,7 +6,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from orchestration.unit import UnitDescription, Variable
+from orchestration.master.unit import UnitDescription, Variable
 
 
 class FakeUnit:
@@ -64,7 +64,7 @@ class FakeUnit:
         self.calls.append(("set", self.name, tuple(self._by_vr[r] for r in handle)))
 
     def step(self, t: float, h: float) -> None:
-        from orchestration.errors import SimulationError
+        from orchestration.master.errors import SimulationError
 
         self.calls.append(("step", self.name, t, h))
         if self.fail_at is not None and t >= self.fail_at:

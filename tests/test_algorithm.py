@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from orchestration.algorithm import CouplingAlgorithm
-from orchestration.errors import SimulationError
-from orchestration.execution import execute, time_grid
-from orchestration.graph import AlgebraicLoopError, Link, gauss_seidel_order, propagation_order
-from orchestration.recorder import Recorder
+from orchestration.master.algorithm import CouplingAlgorithm
+from orchestration.master.errors import SimulationError
+from orchestration.master.execution import execute, time_grid
+from orchestration.master.graph import AlgebraicLoopError, Link, gauss_seidel_order, propagation_order
+from orchestration.master.recorder import Recorder
 
 from .fake_units import FakeUnit, clock, gain, sampler
 

@@ -1,4 +1,4 @@
-"""Bouc-Wen physics (components/bouc_wen_core.py) and the BoucWenIsolator FMU shell."""
+"""Bouc-Wen physics (components/physics/bouc_wen_core.py) and the BoucWenIsolator FMU shell."""
 
 from __future__ import annotations
 
@@ -11,9 +11,10 @@ from scipy.integrate import solve_ivp
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "components"))  # the FMU shell imports its core by plain name
+sys.path.insert(0, str(ROOT / "components" / "shells"))  # the shell itself, by file name
+sys.path.insert(0, str(ROOT / "components" / "physics"))  # the FMU shell imports its core by plain name
 
-from components.bouc_wen_core import (  # noqa: E402
+from components.physics.bouc_wen_core import (  # noqa: E402
     SYNTHETIC_DEFAULT,
     BoucWenParams,
     bouc_wen_states,
@@ -94,7 +95,7 @@ def test_si_and_mm_integration_agree():
 def _fmu(**params):
     from bouc_wen_isolator_fmu import BoucWenIsolator
 
-    m = BoucWenIsolator(instance_name="test", resources=str(ROOT / "components"))
+    m = BoucWenIsolator(instance_name="test", resources=str(ROOT / "components" / "physics"))
     for k, v in params.items():
         setattr(m, k, v)
     m.log = lambda msg, status=None, *a, **kw: m.__dict__.setdefault("messages", []).append((status, msg))
@@ -124,7 +125,7 @@ def test_fmu_shell_follows_the_core_model():
 
 
 def test_fmu_units_are_known_to_the_build():
-    from components.build import SI_UNITS
+    from components.build.model_description import SI_UNITS
 
     m = _fmu()
     assert set(m.fmi_units.values()) <= set(SI_UNITS)

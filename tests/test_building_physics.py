@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import eigh
 
-from components.shear_building_core import (
+from components.physics.shear_building_core import (
     BuildingParams,
     ShearBuilding,
     matrices,

@@ -1,7 +1,7 @@
 """The plain-C MRE isolator FMU and the pythonfmu one are interchangeable.
 
 Every per-unit check runs against both implementations (``isolator`` is parametrised):
-the force equals :func:`components.mre_isolator_core.isolator_force`, it is direct
+the force equals :func:`components.physics.mre_isolator_core.isolator_force`, it is direct
 feedthrough, the current is clipped, non-finite inputs give an FMI error with a message,
 the range warnings fire on entry, and ``fmpy validate`` finds no problem. Then the two
 interfaces are compared variable by variable, and a co-simulation of El Centro with the
@@ -21,10 +21,11 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-import components.c_isolator_build as cbuild
-from components.build import BuildError, build, discover
-from components.c_isolator_build import C_FMU_NAME, build_c_isolator, ensure_c_isolator, is_stale
-from components.mre_isolator_core import TABLE2, GeneralizedCoefficients, isolator_force
+import components.build.c_isolator as cbuild
+from components.build.c_isolator import C_FMU_NAME, build_c_isolator, ensure_c_isolator, is_stale
+from components.build.model_description import BuildError
+from components.build.pythonfmu_units import build, discover
+from components.physics.mre_isolator_core import TABLE2, GeneralizedCoefficients, isolator_force
 
 from .fmu_driver import Driven
 
@@ -242,7 +243,7 @@ def test_c_builder_staleness_and_compiler_errors(tmp_path, monkeypatch):
 
 
 def test_elcentro_with_the_c_isolator_equals_the_python_isolator(elcentro, tmp_path):
-    from orchestration.session import run_scenario
+    from orchestration.project import run_scenario
 
     ensure_c_isolator()  # into fmus/, where the scenario points (the master builds only pythonfmu units)
     overrides = ("simulation.stop_time=3",)

@@ -2,7 +2,7 @@
 
 Windows cover each record's strong motion; every peak of the full record falls inside them
 (El Centro 4.6 s, Hachinohe 4.2 s, Northridge 4.3 s, Kobe 11.8 s; README, Coupling accuracy).
-The co-simulation is evaluated with components.monolithic.simulate_coupled, which equals the
+The co-simulation is evaluated with components.physics.monolithic.simulate_coupled, which equals the
 FMU co-simulation to 1e-9 (test_end_to_end); one case runs the FMUs directly.
 """
 
@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.ground_motion_core import GroundMotion, read_record
-from components.monolithic import SystemSetup, Trajectory, simulate_coupled, simulate_radau
-from orchestration.session import run_scenario
+from components.physics.ground_motion_core import GroundMotion, read_record
+from components.physics.monolithic import SystemSetup, Trajectory, simulate_coupled, simulate_radau
+from orchestration.project import run_scenario
 
-from .conftest import PROJECT, shared_record
+from .conftest import PROJECT, shipped_record
 
 H = 1e-3
 WINDOWS = {  # record: simulated window [s]
@@ -29,7 +29,7 @@ WINDOWS = {  # record: simulated window [s]
 
 
 def setup_for(record: str, current: float | None) -> SystemSetup:
-    return SystemSetup(GroundMotion(read_record(shared_record(record)), scale=0.5), passive_current=current)
+    return SystemSetup(GroundMotion(read_record(shipped_record(record)), scale=0.5), passive_current=current)
 
 
 def relative_errors(got: dict[str, float], ref: dict[str, float]) -> dict[str, float]:
@@ -59,7 +59,7 @@ def test_hand_picked_gains_make_sosm_on_kobe_ill_conditioned():
     limit and is ill-conditioned: two tight Radau solutions (rtol 1e-8 and 1e-10) differ by more
     than 5 % on some peak, so no coupling can be held to 1 % there. The tuned default gains are
     well-conditioned (previous test)."""
-    from components.sosm_controller_core import HAND_PICKED_GAINS
+    from components.physics.sosm_controller_core import HAND_PICKED_GAINS
 
     record = "kobe_1995_jma_ns.csv"
     T = WINDOWS[record]

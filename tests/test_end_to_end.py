@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.ground_motion_core import GroundMotion, read_record
-from components.monolithic import SystemSetup, simulate_coupled, simulate_radau
-from orchestration.session import run_scenario
+from components.physics.ground_motion_core import GroundMotion, read_record
+from components.physics.monolithic import SystemSetup, simulate_coupled, simulate_radau
+from orchestration.project import run_scenario
 
 from .conftest import PROJECT
 

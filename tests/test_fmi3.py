@@ -1,4 +1,4 @@
-"""FMI 3.0 co-simulation units in the master (orchestration.fmu3_unit).
+"""FMI 3.0 co-simulation units in the master (orchestration.master.fmu3_unit).
 
 The unit under test is ``ConstantCurrent3``, a plain-C FMI 3.0 FMU built here from
 ``tests/fmi3/constant_current3.c`` (tests/fmi3_build.py): i = count * current + offset
@@ -16,10 +16,13 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from orchestration.errors import ScenarioError, SimulationError, UnitCallError
-from orchestration.fmu3_unit import Fmu3Unit
-from orchestration.fmu_unit import FMI3_STATUS, FmuFormatError, FmuUnit, LogRecord, check_status, read_description
-from orchestration.session import plan_scenario, run_plan, run_scenario
+from orchestration.master.errors import ScenarioError, SimulationError, UnitCallError
+from orchestration.master.fmi_status import FMI3_STATUS, LogRecord, check_status
+from orchestration.master.fmu3_unit import Fmu3Unit
+from orchestration.master.fmu_file import FmuFormatError, read_description
+from orchestration.master.fmu_unit import FmuUnit
+from orchestration.master.session import run_plan
+from orchestration.project import plan_scenario, run_scenario
 
 from .conftest import PROJECT
 from .fmi3_build import (

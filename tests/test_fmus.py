@@ -12,11 +12,11 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from components.build import build, discover
-from components.ground_motion_core import GroundMotion, read_record
-from components.mre_isolator_core import TABLE2, isolator_force
-from components.shear_building_core import BuildingParams, ShearBuilding
-from components.sosm_controller_core import SosmController, SosmGains
+from components.build.pythonfmu_units import build, discover
+from components.physics.ground_motion_core import GroundMotion, read_record
+from components.physics.mre_isolator_core import TABLE2, isolator_force
+from components.physics.shear_building_core import BuildingParams, ShearBuilding
+from components.physics.sosm_controller_core import SosmController, SosmGains
 
 from .fmu_driver import Driven
 
@@ -27,6 +27,17 @@ FMU_NAMES = [source.fmu_name.removesuffix(".fmu") for source in discover()] + ["
 def test_fmu_is_valid(fmu_dir, name):
     """Every FMU the project builds passes fmpy's validation with zero problems."""
     assert validate_fmu(str(fmu_dir / f"{name}.fmu")) == []
+
+
+def test_sosm_gain_units_are_declared_with_their_fractional_powers(fmu_dir):
+    """theta [m^0.5 s^-1.5] and zeta [A s^0.5 m^-0.5]: declared by name only (no integer base-unit exponents)."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(fmu_dir / "SosmCurrentController.fmu"))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert units["theta"] == "m0.5/s1.5" and units["zeta"] == "A.s0.5/m0.5"
+    declared = {u.name: u for u in md.unitDefinitions}
+    assert declared["m0.5/s1.5"].baseUnit is None and declared["A.s0.5/m0.5"].baseUnit is None
 
 
 @pytest.mark.parametrize("name", [s.fmu_name.removesuffix(".fmu") for s in discover() if s.handles_state])

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.ground_motion_core import G, GroundMotion, RecordError, read_record
+from components.physics.ground_motion_core import G, GroundMotion, RecordError, read_record
 
-from .conftest import shared_record
+from .conftest import shipped_record
 
 
 def write(tmp_path: Path, name: str, text: str) -> Path:
@@ -79,7 +79,7 @@ def test_bad_at2_header(tmp_path):
         read_record(write(tmp_path, "r.at2", "a\nb\nc\nno numbers here\n0.1\n"))
 
 
-SOURCES = {  # file: (dt, npts, PGA in g) from shared/ground_motions/SOURCES.md
+SOURCES = {  # file: (dt, npts, PGA in g) from scenarios/records/SOURCES.md
     "elcentro_1940_ns.csv": (0.02, 2688, 0.3487),
     "hachinohe_1968_ns.csv": (0.01, 3600, 0.2294),
     "northridge_1994_sylmar_ns.csv": (0.02, 3000, 0.8431),
@@ -88,8 +88,8 @@ SOURCES = {  # file: (dt, npts, PGA in g) from shared/ground_motions/SOURCES.md
 
 
 @pytest.mark.parametrize("name", sorted(SOURCES))
-def test_shared_records_match_their_sources(name):
-    path = shared_record(name)
+def test_shipped_records_match_their_sources(name):
+    path = shipped_record(name)
     dt, npts, pga = SOURCES[name]
     rec = read_record(path)
     assert len(rec.time) == npts

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from components.mre_isolator_core import (
+from components.physics.mre_isolator_core import (
     TABLE2,
     TABLE2_PAPER_UNITS,
     GeneralizedCoefficients,

@@ -4,7 +4,7 @@ libcosim's fixed-step algorithm steps all units from the inputs of t and transfe
 outputs afterwards: a direct-feedthrough output reaches its consumer one step late. Our
 master's Jacobi re-evaluates feedthrough outputs with the new inputs instead, so the
 honest comparison is against our master configured to libcosim's scheme (Jacobi, every
-connection delayed: :func:`orchestration.libcosim_export.libcosim_scheme`), to 1e-9 of
+connection delayed: :func:`orchestration.interop.libcosim_export.libcosim_scheme`), to 1e-9 of
 each variable's peak. A separate test measures how far the two schemes are apart.
 
 The SOSM runs use the step 2^-9 s (1.953125 ms): a whole number of nanoseconds (libcosim's
@@ -22,14 +22,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from orchestration.libcosim_export import LibcosimRun, libcosim_available, libcosim_scheme, run_libcosim
-from orchestration.recorder import Recorder
-from orchestration.scenario import SimulationSpec
-from orchestration.session import run_plan
-from orchestration.ssp import export_ssp, load_ssp
-from orchestration.system import resolve
+from orchestration.interop.libcosim_export import LibcosimRun, libcosim_available, libcosim_scheme, run_libcosim
+from orchestration.interop.ssp import export_ssp, load_ssp
+from orchestration.master.recorder import Recorder
+from orchestration.master.scenario import SimulationSpec
+from orchestration.master.session import run_plan
+from orchestration.project import plan_scenario, resolve_scenario
 
-from .conftest import shared_record
+from .conftest import shipped_record
 
 PROJECT = Path(__file__).resolve().parent.parent
 KOBE = PROJECT / "scenarios" / "kobe.yaml"
@@ -53,10 +53,11 @@ def _compare(lc: LibcosimRun, ours: Recorder) -> np.ndarray:
 
 def _both(tmp: Path, name: str, overrides: tuple[str, ...]) -> tuple[LibcosimRun, Recorder, object]:
     """Export Kobe with overrides, run the package in libcosim and in our master (libcosim's scheme)."""
-    shared_record("kobe_1995_jma_ns.csv")
-    package = export_ssp(KOBE, tmp / f"{name}.ssp", ("simulation.algorithm=jacobi", STOP, *overrides))
+    shipped_record("kobe_1995_jma_ns.csv")
+    plan = plan_scenario(KOBE, ("simulation.algorithm=jacobi", STOP, *overrides))
+    package = export_ssp(plan, tmp / f"{name}.ssp")
     loaded = load_ssp(package)
-    plan = resolve(libcosim_scheme(loaded))
+    plan = resolve_scenario(libcosim_scheme(loaded))
     ours = run_plan(plan, out=tmp / f"{name}-ours", plots=False)
     assert ours.result.complete
     sim = loaded.scenario.simulation
@@ -70,7 +71,8 @@ def sosm(tmp_path_factory):
     lc, ours, _ = _both(tmp, "sosm", (DYADIC_STEP,))
     # our Jacobi as it couples by default but holding inputs like libcosim: only the propagation differs
     hold = ("simulation.inputs=hold",) if "inputs" in SimulationSpec.model_fields else ()
-    propagated = run_plan(resolve(load_ssp(tmp / "sosm.ssp", hold)), out=tmp / "sosm-jacobi", plots=False).recorder
+    plan = resolve_scenario(load_ssp(tmp / "sosm.ssp", hold))
+    propagated = run_plan(plan, out=tmp / "sosm-jacobi", plots=False).recorder
     return lc, ours, propagated
 
 
@@ -104,7 +106,7 @@ def test_passive_kobe_at_the_scenario_step(tmp_path):
 
 
 def test_c_isolator_in_libcosim(sosm, tmp_path):
-    from components.c_isolator_build import ensure_c_isolator
+    from components.build.c_isolator import ensure_c_isolator
 
     ensure_c_isolator()
     lc_c, ours_c, _ = _both(tmp_path, "c", (DYADIC_STEP, f"units.isolator.fmu={PROJECT / 'fmus' / 'MreIsolatorC.fmu'}"))

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from orchestration import native_stepper
-from orchestration.algorithm import CouplingAlgorithm
-from orchestration.execution import execute
-from orchestration.graph import Link
-from orchestration.session import plan_scenario, run_plan
+from orchestration.master import native_stepper
+from orchestration.master.algorithm import CouplingAlgorithm
+from orchestration.master.execution import execute
+from orchestration.master.graph import Link
+from orchestration.master.session import run_plan
+from orchestration.project import plan_scenario
 
 from .conftest import PROJECT
 from .fake_units import clock, sampler

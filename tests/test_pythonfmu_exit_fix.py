@@ -1,6 +1,6 @@
 """The build removes pythonfmu 0.7's use-after-free exit hook from every FMU's Linux binary.
 
-The bug (see components/pythonfmu_exit_fix.py) corrupts the heap at process exit in a few
+The bug (see components/build/exit_fix.py) corrupts the heap at process exit in a few
 per cent of runs, so its presence is checked on the binary (independently of the fix's
 own reader, with the ELF tables read here) and, where valgrind exists, on a live exit.
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 from elftools.elf.elffile import ELFFile
 
-from components.pythonfmu_exit_fix import HOOK_SYMBOL, ExitHookError, has_exit_hook, remove_exit_hook
+from components.build.exit_fix import HOOK_SYMBOL, ExitHookError, has_exit_hook, remove_exit_hook
 
 if not sys.platform.startswith("linux"):
     pytest.skip("the exit hook is in pythonfmu's Linux binary", allow_module_level=True)

@@ -16,11 +16,11 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from components.build import FmuSource, build
-from orchestration.errors import ScenarioError
-from orchestration.scenario import load_scenario
-from orchestration.session import plan_scenario, run_plan
-from orchestration.system import resolve
+from components.build.pythonfmu_units import FmuSource, build
+from orchestration.master.errors import ScenarioError
+from orchestration.master.scenario import load_scenario
+from orchestration.master.session import run_plan
+from orchestration.project import plan_scenario, resolve_scenario
 
 from .conftest import PROJECT
 
@@ -196,7 +196,7 @@ def test_fuzzed_structures_only_raise_scenario_errors(tmp_path, tree):
     path.write_text(yaml.safe_dump(tree))
     before = set(tmp_path.iterdir())
     try:
-        resolve(load_scenario(path), build=False)
+        resolve_scenario(load_scenario(path), build=False)
     except ScenarioError:
         pass
     assert set(tmp_path.iterdir()) == before  # nothing written
@@ -208,7 +208,7 @@ def test_fuzzed_yaml_text_only_raises_scenario_errors(tmp_path, text):
     path = tmp_path / "fuzz.yaml"
     path.write_text(text)
     try:
-        resolve(load_scenario(path), build=False)
+        resolve_scenario(load_scenario(path), build=False)
     except ScenarioError:
         pass
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fuzz.yaml"]
@@ -218,6 +218,6 @@ def test_fuzzed_yaml_text_only_raises_scenario_errors(tmp_path, text):
 @given(key=st.text(max_size=30), value=st.text(max_size=30))
 def test_fuzzed_overrides_only_raise_scenario_errors(tmp_path, key, value):
     try:
-        resolve(load_scenario(PROJECT / "scenarios" / "elcentro.yaml", (f"{key}={value}",)), build=False)
+        resolve_scenario(load_scenario(PROJECT / "scenarios" / "elcentro.yaml", (f"{key}={value}",)), build=False)
     except ScenarioError:
         pass

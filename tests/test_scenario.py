@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from orchestration.datapath import ENV_VAR, find_data_file
-from orchestration.errors import ScenarioError
-from orchestration.scenario import load_scenario
-from orchestration.system import resolve
-from orchestration.yaml_source import DataFile
+from orchestration.master.datapath import ENV_VAR, find_data_file
+from orchestration.master.errors import ScenarioError
+from orchestration.master.scenario import load_scenario
+from orchestration.master.yaml_source import DataFile
+from orchestration.project import HOOKS, check_record, resolve_scenario
 
 from .conftest import PROJECT
 
@@ -115,13 +115,33 @@ def test_data_path_order_and_missing_file(tmp_path, monkeypatch):
     (first / "r.csv").write_text("0,0\n1,1\n")
     (second / "r.csv").write_text("0,0\n1,1\n")
     (second / "only2.csv").write_text("0,0\n1,1\n")
+    third = tmp_path / "third"  # an application's default folder: searched after the environment's
+    third.mkdir()
+    (third / "only2.csv").write_text("0,0\n1,1\n")
+    (third / "only3.csv").write_text("0,0\n1,1\n")
     monkeypatch.setenv(ENV_VAR, str(second))
-    assert find_data_file("r.csv", (first,)) == (first / "r.csv").resolve()
-    assert find_data_file("only2.csv", (first,)) == (second / "only2.csv").resolve()
+    assert find_data_file("r.csv", (first,), defaults=(third,)) == (first / "r.csv").resolve()
+    assert find_data_file("only2.csv", (first,), defaults=(third,)) == (second / "only2.csv").resolve()
+    assert find_data_file("only3.csv", (first,), defaults=(third,)) == (third / "only3.csv").resolve()
     with pytest.raises(FileNotFoundError) as err:
-        find_data_file("nothere.csv", (first,))
+        find_data_file("nothere.csv", (first,), defaults=(third,))
     text = str(err.value)
-    assert str(first / "nothere.csv") in text and str(second / "nothere.csv") in text and "ground_motions" in text
+    assert all(str(d / "nothere.csv") in text for d in (first, second, third))
+
+
+def test_the_shipped_records_are_on_the_projects_data_path(monkeypatch, tmp_path):
+    """A clone needs nothing beside it: a scenario finds its record in scenarios/records (no ../shared)."""
+    monkeypatch.delenv(ENV_VAR, raising=False)
+    monkeypatch.chdir(tmp_path)
+    records = (PROJECT / "scenarios" / "records").resolve()
+    for name in ("elcentro", "hachinohe", "northridge", "kobe"):
+        loaded = load_scenario(PROJECT / "scenarios" / f"{name}.yaml")
+        record = loaded.scenario.units["ground"].parameters["record"]
+        assert isinstance(record, DataFile) and record.kind == "record"
+        found = find_data_file(record.name, (), loaded.base_dir("units", "ground", "parameters", "record"),
+                               HOOKS.default_data_dirs)
+        assert found.parent == records
+        assert check_record(found) is None
 
 
 def system_yaml(fmu_dir: Path, extra: str = "", connections: str | None = None) -> str:
@@ -146,12 +166,12 @@ def system_yaml(fmu_dir: Path, extra: str = "", connections: str | None = None) 
 
 def resolve_problems(path: Path) -> list[str]:
     with pytest.raises(ScenarioError) as err:
-        resolve(load_scenario(path), build=False)
+        resolve_scenario(load_scenario(path), build=False)
     return [str(p) for p in err.value.problems]
 
 
 def test_a_valid_system_resolves(fmu_dir, tmp_path, elcentro):
-    plan = resolve(load_scenario(write(tmp_path, system_yaml(fmu_dir))), build=False)
+    plan = resolve_scenario(load_scenario(write(tmp_path, system_yaml(fmu_dir))), build=False)
     assert plan.parameters["ground"]["record"] == str(elcentro.resolve())
     assert len(plan.links) == 4
 

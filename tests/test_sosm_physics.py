@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from components.mre_isolator_core import TABLE2, isolator_force
-from components.sosm_controller_core import (
+from components.physics.mre_isolator_core import TABLE2, isolator_force
+from components.physics.sosm_controller_core import (
     SosmController,
     SosmGains,
     control_direction,
@@ -90,7 +90,7 @@ def test_sliding_variable_is_driven_to_zero_where_the_sign_condition_holds():
 def test_the_controllers_isolator_model_is_table2():
     """The controller keeps its own copy of the Table 2 coefficients it needs (no module shared
     between FMUs); it must equal the isolator's."""
-    from components.sosm_controller_core import IsolatorModel
+    from components.physics.sosm_controller_core import IsolatorModel
 
     model = IsolatorModel()
     for name in ("c0_0", "k0_0", "alpha_0", "alpha_1", "beta_0", "beta_1"):

@@ -13,11 +13,11 @@ import pytest
 from fmpy import read_model_description
 from fmpy.ssp.ssd import read_ssd, read_ssv
 
-from orchestration.errors import ScenarioError
-from orchestration.scenario import LoadedScenario, load_scenario
-from orchestration.session import plan_scenario, run_plan
-from orchestration.ssp import SSD_FILE, export_ssp, load_ssp
-from orchestration.system import resolve
+from orchestration.interop.ssp import SSD_FILE, export_ssp, load_ssp
+from orchestration.master.errors import ScenarioError
+from orchestration.master.scenario import LoadedScenario, load_scenario
+from orchestration.master.session import run_plan
+from orchestration.project import plan_scenario, resolve_scenario
 
 PROJECT = Path(__file__).resolve().parent.parent
 KOBE = PROJECT / "scenarios" / "kobe.yaml"
@@ -25,7 +25,7 @@ KOBE = PROJECT / "scenarios" / "kobe.yaml"
 
 @pytest.fixture(scope="module")
 def kobe_ssp(kobe, tmp_path_factory) -> Path:
-    return export_ssp(KOBE, tmp_path_factory.mktemp("ssp") / "kobe.ssp")
+    return export_ssp(plan_scenario(KOBE), tmp_path_factory.mktemp("ssp") / "kobe.ssp")
 
 
 def _rewrite(package: Path, dest: Path, member: str, edit) -> Path:
@@ -115,7 +115,7 @@ def test_running_the_package_equals_running_the_yaml(kobe_ssp, tmp_path):
                  "controller.i_passive=1.5")
     loaded = load_ssp(kobe_ssp, overrides)
     assert loaded.scenario.units["controller"].parameters == {"mode": "passive", "i_passive": 1.5}
-    from_ssp = run_plan(resolve(loaded), out=tmp_path / "ssp", plots=False)
+    from_ssp = run_plan(resolve_scenario(loaded), out=tmp_path / "ssp", plots=False)
     from_yaml = run_plan(plan_scenario(KOBE, overrides), out=tmp_path / "yaml", plots=False)
     assert from_ssp.result.complete and from_ssp.result.steps_done == 2000
     assert from_ssp.recorder.names == from_yaml.recorder.names
@@ -130,7 +130,7 @@ def test_delayed_connections_survive_the_round_trip(kobe, tmp_path):
     sc = loaded.scenario
     connections = [c.model_copy(update={"delayed": str(c) .startswith("isolator.F")}) for c in sc.connections]
     delayed = LoadedScenario(sc.model_copy(update={"connections": connections}), loaded.path, loaded.lines, loaded.raw)
-    package = export_ssp(resolve(delayed), tmp_path / "delayed.ssp")
+    package = export_ssp(resolve_scenario(delayed), tmp_path / "delayed.ssp")
     back = load_ssp(package)
     assert [c.delayed for c in back.scenario.connections] == [c.delayed for c in connections]
     assert sum(c.delayed for c in back.scenario.connections) == 1
@@ -217,7 +217,7 @@ def test_unknown_parameter_is_reported_at_its_ssv_line(kobe_ssp, tmp_path):
                    lambda t: t.replace('name="n_isolators"', 'name="n_isolator"'))
     loaded = load_ssp(bad)
     with pytest.raises(ScenarioError) as exc:
-        resolve(loaded)
+        resolve_scenario(loaded)
     (problem,) = _problems(exc)
     assert problem.message == "MreIsolator has no variable 'n_isolator'"
     assert problem.file.endswith("bad.ssp!/resources/isolator.ssv") and problem.line == 4

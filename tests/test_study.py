@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 import yaml
 
-from components.monolithic import simulate_coupled
-from components.sosm_controller_core import SosmGains
-from components.switching_controller_core import SwitchingLaw
-from orchestration.session import plan_scenario
-from orchestration.study_analysis import PEAK_COLUMNS, indices, run_metrics
-from orchestration.study_config import ObjectiveSpec, TuningSpec, load_study
-from orchestration.study_runner import Job, run_jobs
-from orchestration.study_tuning import objective, peak_values, read_gains, run_overrides, system_setup, tune
+from components.physics.monolithic import simulate_coupled
+from components.physics.sosm_controller_core import SosmGains
+from components.physics.switching_controller_core import SwitchingLaw
+from orchestration.project import plan_scenario
+from orchestration.studies.analysis import PEAK_COLUMNS, indices, run_metrics
+from orchestration.studies.config import ObjectiveSpec, TuningSpec, load_study
+from orchestration.studies.runner import Job, run_jobs
+from orchestration.studies.tuning import objective, peak_values, read_gains, run_overrides, system_setup, tune
 
 from .conftest import PROJECT
 

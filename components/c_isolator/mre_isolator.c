@@ -1,7 +1,7 @@
 /*
  * MRE base isolator as a plain-C FMI 2.0 Co-Simulation FMU (not made with pythonfmu).
  *
- * The same unit as components/mre_isolator_fmu.py (class MreIsolator): same variable
+ * The same unit as components/shells/mre_isolator_fmu.py (class MreIsolator): same variable
  * names, value references, units, causalities and value semantics.
  *
  *   F = n * (c0(i) v + k0(i) x + alpha(i) sinh(beta(i) x) + F0),  p(i) = p_0 * i + p_1,
@@ -16,7 +16,7 @@
  * Non-finite inputs make fmi2DoStep return fmi2Error with a logged message
  * "input <name> = <value> is not finite at t = <t> s".
  *
- * Built by components/c_isolator_build.py against the FMI 2.0 headers fmpy ships:
+ * Built by components/build/c_isolator.py against the FMI 2.0 headers fmpy ships:
  *   cc -shared -fPIC -O2 -ffp-contract=off -I<fmpy>/c-code mre_isolator.c -lm
  * The builder defines MODEL_GUID and the Table 2 defaults (from
  * components/mre_isolator_core.TABLE2, the same doubles as the Python unit) at the top

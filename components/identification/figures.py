@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from components.identification.config import IdentificationConfig
     from components.identification.identifiers import IdentResult
     from components.identification.models import FitData
-    from components.identification.pipeline import RunResult
+    from components.identification.run_result import RunResult
 
 
 def _save(fig, path: Path, synthetic: bool) -> None:

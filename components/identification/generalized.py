@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from components.bouc_wen_core import BoucWenCurrentModel
 from components.identification.paper_tables import CURRENTS_A, PARAMS, TABLE1
 from components.identification.testdata import atomic_write_text
-from components.mre_isolator_core import GeneralizedCoefficients
+from components.physics.bouc_wen_core import BoucWenCurrentModel
+from components.physics.mre_isolator_core import GeneralizedCoefficients
 
 LINEAR_IN_CURRENT = {
     "hyperbolic": ("k0", "c0", "alpha", "beta"),
@@ -127,21 +127,46 @@ def si_coefficients(fit: GeneralizedFit) -> GeneralizedCoefficients | BoucWenCur
     return BoucWenCurrentModel.from_paper_units(**fit.coefficients)
 
 
+ROUNDOFF_REL = 1e-9
+"""Relative size below which a fitted value counts as zero (see :func:`roundoff_tolerance`)."""
+
+
+def roundoff_tolerance(fit: GeneralizedFit, param: str, i_max: float) -> float:
+    """Absolute tolerance for comparing the fitted line of ``param`` with zero on [0, i_max] A.
+
+    The lines come from ``np.polyfit`` (least squares through BLAS/LAPACK) on per-current
+    means of order 1-40 in paper units. A value that is zero in exact arithmetic comes out
+    as +-1e-16..1e-15 with a sign that depends on the BLAS build and the CPU (e.g. k0(0 A)
+    = -3.966e-16 on AMD EPYC, +2e-16 elsewhere); double precision leaves ~1e-16 relative
+    to the magnitudes involved, amplified by the (small) condition number of the fit. So a
+    value counts as zero within ROUNDOFF_REL = 1e-9 times the largest magnitude involved
+    (|line| at 0 A and i_max, and the means it was fitted to): 10^6 above round-off, yet
+    far below any physically meaningful parameter (a real -1e-9 relative stiffness is zero
+    for every purpose of the model).
+    """
+    line = [abs(fit.coefficients[f"{param}_0"] * i + fit.coefficients[f"{param}_1"]) for i in (0.0, i_max)]
+    data = [abs(m[param]) for m in fit.means.values() if param in m]
+    return ROUNDOFF_REL * max([*line, *data, 0.0])
+
+
 def physical_problems(fit: GeneralizedFit, i_max: float) -> list[str]:
     """Why the fitted lines are not a usable device model on [0, i_max] A (empty if usable).
 
     Every linear parameter must be >= 0 at 0 A and at i_max (Eq. 6; lines, so then on the
     whole range); for Bouc-Wen also beta + gamma > 0 (else there is no hysteresis envelope).
+    Values within round-off of zero (:func:`roundoff_tolerance`) count as zero: a parameter
+    of -4e-16 is accepted as 0, a beta + gamma of +4e-16 is refused as 0.
     """
+    linear = LINEAR_IN_CURRENT[fit.model]
+    tol = {p: roundoff_tolerance(fit, p, i_max) for p in linear}
     out = []
     for i in (0.0, i_max):
-        values = {
-            p: fit.coefficients[f"{p}_0"] * i + fit.coefficients[f"{p}_1"]
-            for p in LINEAR_IN_CURRENT[fit.model]
-        }
-        out += [f"{p}({i:g} A) = {v:.4g} < 0" for p, v in values.items() if v < 0]
-        if fit.model == "bouc_wen" and values["beta"] + values["gamma"] <= 0:
-            out.append(f"beta + gamma = {values['beta'] + values['gamma']:.4g} <= 0 at {i:g} A")
+        values = {p: fit.coefficients[f"{p}_0"] * i + fit.coefficients[f"{p}_1"] for p in linear}
+        out += [f"{p}({i:g} A) = {v:.4g} < 0" for p, v in values.items() if v < -tol[p]]
+        if fit.model == "bouc_wen":
+            total = values["beta"] + values["gamma"]
+            if total <= tol["beta"] + tol["gamma"]:
+                out.append(f"beta + gamma = {total:.4g} <= 0 at {i:g} A")
     return out
 
 

@@ -1,7 +1,7 @@
 """Model forms, fit data and the objective of Eq. (5), in the paper's units (mm, mm/s, N).
 
 Hyperbolic: F = c0 v + k0 x + alpha sinh(beta x) + F0 (Eq. 3-4); S = [c0, k0, alpha, beta].
-Bouc-Wen:   F = k x + c v + alpha y + F0, y from Eq. (2) (components.bouc_wen_core, with
+Bouc-Wen:   F = k x + c v + alpha y + F0, y from Eq. (2) (components.physics.bouc_wen_core, with
             delta fixed at 1/mm); S = [k, c, alpha, beta, gamma, n].
 In both, F0 is the mean measured force over the fit window, as the paper states.
 """
@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from components.bouc_wen_core import bouc_wen_states
 from components.identification.paper_tables import Condition
 from components.identification.testdata import ShakeRecord, TestDataError, hyperbolic_force_mm
+from components.physics.bouc_wen_core import bouc_wen_states
 
 HYPERBOLIC_PARAMS: tuple[str, ...] = ("c0", "k0", "alpha", "beta")
 BOUC_WEN_PARAMS: tuple[str, ...] = ("k", "c", "alpha", "beta", "gamma", "n")
-BW_DELTA_MM = 1.0  # delta fixed at 1 per mm (see components.bouc_wen_core)
+BW_DELTA_MM = 1.0  # delta fixed at 1 per mm (see components.physics.bouc_wen_core)
 # Sub-step control of the Bouc-Wen integrator in identification (see bouc_wen_core.substeps):
 # at most 0.2 mm and 2/Lam per sub-step, at most 4 sub-steps per sample. Coarser than the
 # FMU's defaults to keep FFOA affordable; the scheme stays stable, and for the parameters

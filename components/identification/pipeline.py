@@ -6,16 +6,17 @@ import json
 import os
 import shutil
 import sys
+import tempfile
+import uuid
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from components.bouc_wen_core import SYNTHETIC_DEFAULT
 from components.identification import report
-from components.identification.bouc_wen_joint import JointFit, fit_bouc_wen_joint
+from components.identification.bouc_wen_joint import fit_bouc_wen_joint
 from components.identification.config import IdentificationConfig
 from components.identification.ffoa import FFOASettings
 from components.identification.generalized import (
@@ -35,6 +36,7 @@ from components.identification.identifiers import (
 )
 from components.identification.models import FitData, fit_data
 from components.identification.paper_tables import TEST_MATRIX, Condition
+from components.identification.run_result import RunResult
 from components.identification.testdata import (
     SYNTHETIC_NOTE,
     NoiseModel,
@@ -44,24 +46,8 @@ from components.identification.testdata import (
     read_folder,
     write_csv,
 )
-from components.mre_isolator_core import TABLE2_PAPER_UNITS
-
-
-@dataclass
-class RunResult:
-    """Everything a run produced (also written to the output folder)."""
-
-    data: dict[Condition, FitData]
-    results: dict[str, dict[Condition, IdentResult]]
-    generalized: dict[str, GeneralizedFit] = field(default_factory=dict)
-    generalization_errors: dict[str, str] = field(default_factory=dict)
-    synthetic: bool = False
-    joint: JointFit | None = None
-    generalized_rms: dict[str, dict[Condition, float]] = field(default_factory=dict)
-
-    @property
-    def not_converged(self) -> list[IdentResult]:
-        return [r for per in self.results.values() for r in per.values() if not r.converged]
+from components.physics.bouc_wen_core import SYNTHETIC_DEFAULT
+from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS
 
 
 def load_records(cfg: IdentificationConfig, base: Path) -> list[ShakeRecord]:
@@ -151,23 +137,107 @@ def generalize(results: dict[str, dict[Condition, IdentResult]]):
     return fits, errors
 
 
+MARKER = ".mre-cosim-identification"
+"""Written into every output folder this tool creates; --overwrite replaces only folders that hold it."""
+
+
+class OutputFolderError(FileExistsError):
+    """The output folder cannot be used (exists, not ours to replace, or not writable); nothing was deleted."""
+
+
+def _protected(out: Path) -> str | None:
+    """Why ``out`` (resolved) may never be replaced, or None."""
+    cwd = Path.cwd().resolve()
+    if out == Path(out.anchor):
+        return "it is the filesystem root"
+    if out == cwd:
+        return "it is the current working directory"
+    if out in cwd.parents:
+        return "it contains the current working directory"
+    try:
+        if out == Path.home().resolve():
+            return "it is the home folder"
+    except RuntimeError:  # no home folder known
+        pass
+    return None
+
+
+def _check_replaceable(out: Path, shown: Path) -> None:
+    """Refuse to replace ``out`` unless this tool made it (marker) or it is an empty folder."""
+    why = _protected(out)
+    if why is None and not out.is_dir():
+        why = "it is not a folder"
+    if why is None and not (out / MARKER).is_file() and any(out.iterdir()):
+        why = f"it was not written by this tool (no {MARKER} marker)"
+    if why:
+        raise OutputFolderError(f"{shown}: refusing to overwrite, {why}; choose another --out (nothing was deleted)")
+
+
 def prepare_output(out: Path, overwrite: bool) -> Path:
-    """A fresh staging folder next to ``out``; refuses an existing ``out`` unless overwrite."""
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: output folder exists; choose another with --out or pass --overwrite")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = out.parent / f".{out.name}.partial-{os.getpid()}"
-    if stage.exists():
-        shutil.rmtree(stage)
-    stage.mkdir()
+    """A fresh, marked staging folder next to ``out``.
+
+    Refuses an existing ``out`` unless ``overwrite``; even then only a folder this tool
+    wrote (it holds :data:`MARKER`) or an empty one is replaced, never the working
+    directory, one of its ancestors, the root or the home folder. All checks happen here,
+    before anything is identified.
+    """
+    target = out.resolve()
+    if out.exists() or out.is_symlink():
+        if not overwrite:
+            raise OutputFolderError(f"{out}: output folder exists; choose another with --out or pass --overwrite")
+        _check_replaceable(target, out)
+    elif _protected(target):
+        raise OutputFolderError(f"{out}: refusing to write there, {_protected(target)}")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-", dir=target.parent))
+    except OSError as exc:
+        raise OutputFolderError(f"{out}: cannot create the output folder ({exc.strerror or exc}); "
+                                "choose another --out") from None
+    try:
+        mask = os.umask(0)
+        os.umask(mask)
+        stage.chmod(0o777 & ~mask)  # mkdtemp makes it private; the output gets the usual permissions
+        (stage / MARKER).write_text(json.dumps({"tool": "mre-cosim identify", "pid": os.getpid(),
+                                                "time": datetime.now(UTC).isoformat()}))
+    except OSError as exc:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise OutputFolderError(f"{out}: cannot write the output folder ({exc.strerror or exc}); "
+                                "choose another --out") from None
     return stage
 
 
-def commit_output(stage: Path, out: Path) -> None:
-    """Move the finished staging folder into place (replacing ``out`` only if it was allowed)."""
-    if out.exists():
-        shutil.rmtree(out)
-    os.replace(stage, out)
+def commit_output(stage: Path, out: Path, overwrite: bool = False) -> None:
+    """Move the finished staging folder into place.
+
+    An old ``out`` (checked again: marked or empty) is first renamed aside, the new one is
+    renamed into place, and only then is the old one deleted, so at every moment either
+    the old or the new complete output is at ``out``.
+    """
+    target = out.resolve()
+    old = None
+    if target.exists() or target.is_symlink():
+        if not overwrite:
+            raise OutputFolderError(f"{out}: output folder appeared during the run; the new results are in {stage}")
+        try:
+            _check_replaceable(target, out)
+        except OutputFolderError as exc:
+            raise OutputFolderError(f"{exc}; the new results are in {stage}") from None
+        old = target.parent / f".{target.name}.old-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    try:
+        if old is not None:
+            os.rename(target, old)
+        try:
+            os.rename(stage, target)
+        except BaseException:
+            if old is not None:
+                os.rename(old, target)
+            raise
+    except OSError as exc:
+        raise OutputFolderError(f"{out}: cannot move the new results into place ({exc.strerror or exc}); "
+                                f"they are in {stage}") from None
+    if old is not None:
+        shutil.rmtree(old)
 
 
 def run(
@@ -227,5 +297,5 @@ def run(
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
-    commit_output(stage, out)
+    commit_output(stage, out, overwrite)
     return run_result

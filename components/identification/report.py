@@ -12,11 +12,11 @@ import numpy as np
 from components.identification.generalized import LINEAR_IN_CURRENT, table2_from_table1
 from components.identification.models import BOUC_WEN_PARAMS, HYPERBOLIC_PARAMS
 from components.identification.testdata import SYNTHETIC_NOTE, atomic_write_text
-from components.mre_isolator_core import TABLE2_PAPER_UNITS
+from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS
 
 if TYPE_CHECKING:
     from components.identification.config import IdentificationConfig
-    from components.identification.pipeline import RunResult
+    from components.identification.run_result import RunResult
 
 NOT_CONVERGED = "not converged"
 _UNITS = {

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from components.bouc_wen_core import BoucWenCurrentModel, bouc_wen_states
 from components.identification.paper_tables import TABLE1, TEST_MATRIX, Condition
-from components.mre_isolator_core import HyperbolicParams
+from components.physics.bouc_wen_core import BoucWenCurrentModel, bouc_wen_states
+from components.physics.mre_isolator_core import HyperbolicParams
 
 REQUIRED_COLUMNS = ("time_s", "displacement_mm", "force_n")
 OPTIONAL_COLUMNS = ("velocity_mm_s", "force_clean_n")

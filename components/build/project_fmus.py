@@ -1,0 +1,62 @@
+"""Every FMU the project builds: build all of them, or one on demand before a run.
+
+``python -m components.build [--dest fmus] [--force] [--storeys N ...]`` builds all FMUs;
+:func:`ensure_fmu` is the hook the command-line tools give the master, so that a scenario
+naming one of the project's FMUs in ``fmus/`` gets it built when it is missing or stale.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from components.build.c_isolator import ensure_c_isolator, is_c_isolator
+from components.build.model_description import DEFAULT_FMU_DIR, BuildError
+from components.build.pythonfmu_units import build, discover, is_stale, known_fmu
+
+
+def ensure_built(dest: Path = DEFAULT_FMU_DIR, force: bool = False, storeys: tuple[int, ...] = ()) -> list[Path]:
+    """Build every FMU that is missing or older than its sources; returns all FMU paths."""
+    paths = []
+    for source in discover(storeys):
+        fmu = dest / source.fmu_name
+        if force or is_stale(source, fmu):
+            build(source, dest)
+        paths.append(fmu)
+    paths.append(ensure_c_isolator(dest, force))
+    return paths
+
+
+def ensure_fmu(path: Path) -> str | None:
+    """Build the FMU if the project builds it and it is missing or stale; returns a problem text or None."""
+    path = Path(path)
+    if is_c_isolator(path):
+        try:
+            ensure_c_isolator(path.parent)
+        except BuildError as exc:
+            return f"cannot build {path.name}: {exc}"
+        return None
+    source = known_fmu(path)
+    if source is None:
+        return None if path.is_file() else f"FMU file {path} does not exist"
+    if is_stale(source, path):
+        try:
+            build(source, path.parent)
+        except BuildError as exc:
+            return f"cannot build {path.name}: {exc}"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m components.build",
+                                     description="Build the project's FMUs into fmus/.")
+    parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
+    parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    parser.add_argument(
+        "--storeys", type=int, nargs="*", default=[], help="also build shear-building variants with N storeys"
+    )
+    args = parser.parse_args(argv)
+    for path in ensure_built(args.dest, args.force, tuple(args.storeys)):
+        print(path)
+    return 0
+

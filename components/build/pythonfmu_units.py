@@ -1,0 +1,226 @@
+"""Build the project's pythonfmu FMUs and complete their modelDescription.
+
+Every ``components/shells/*_fmu.py`` holds one ``Fmi2Slave`` shell; its FMU is named after
+the class (the model identifier). The shell lists the physics modules of
+``components/physics/`` it imports in ``FMU_CORE_MODULES``; they travel in the FMU's
+resources under their own (unique) module names, and the shell imports them by that bare
+name.
+
+pythonfmu 0.7 writes no units and no output dependencies, so the build rewrites the
+modelDescription (:mod:`components.build.model_description`). The Linux binary pythonfmu
+0.7 ships has an exit hook that uses freed memory; the build removes it
+(:mod:`components.build.exit_fix`).
+
+Build everything with ``python -m components.build``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import os
+import re
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from components.build.exit_fix import ExitHookError, remove_exit_hook
+from components.build.model_description import DEFAULT_FMU_DIR, BuildError, complete_model_description
+
+COMPONENTS_DIR = Path(__file__).resolve().parents[1]
+SHELLS_DIR = COMPONENTS_DIR / "shells"
+CORES_DIR = COMPONENTS_DIR / "physics"
+BUILD_DIR = Path(__file__).resolve().parent
+
+
+@dataclass(frozen=True)
+class FmuSource:
+    """One buildable FMU: the shell script and the class it holds."""
+
+    script: Path
+    class_name: str
+    core_modules: tuple[str, ...]
+    storeys: int | None = None  # only for shells that take N_STOREYS at build time
+    requirements: tuple[str, ...] = ()  # Python packages the unit imports on the host
+    handles_state: bool = False  # the shell implements fmi2GetFMUstate/fmi2SetFMUstate
+
+    @property
+    def fmu_name(self) -> str:
+        if self.storeys is None or self.storeys == 3:
+            return f"{self.class_name}.fmu"
+        return f"{self.class_name}{self.storeys}.fmu"
+
+    @property
+    def sources(self) -> list[Path]:
+        """Files whose change makes the FMU stale."""
+        cores = [CORES_DIR / f"{m}.py" for m in self.core_modules]
+        return [self.script, *cores, Path(__file__).resolve(), BUILD_DIR / "exit_fix.py",
+                BUILD_DIR / "model_description.py"]
+
+
+def _load_module(script: Path, module_name: str):
+    sys.path.insert(0, str(CORES_DIR))
+    try:
+        spec = importlib.util.spec_from_file_location(module_name, script)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(CORES_DIR))
+    return module
+
+
+def _shell_class(module):
+    from pythonfmu import Fmi2Slave
+
+    classes = [
+        obj
+        for _, obj in inspect.getmembers(module, inspect.isclass)
+        if issubclass(obj, Fmi2Slave) and obj is not Fmi2Slave and obj.__module__ == module.__name__
+    ]
+    if len(classes) != 1:
+        raise BuildError(f"{module.__file__}: expected one Fmi2Slave class, found {len(classes)}")
+    return classes[0]
+
+
+def discover(storeys: tuple[int, ...] = ()) -> list[FmuSource]:
+    """All FMU shells in components/shells/, plus building variants for the given storey counts."""
+    found = []
+    for script in sorted(SHELLS_DIR.glob("*_fmu.py")):
+        module = _load_module(script, f"_discover_{script.stem}")
+        cls = _shell_class(module)
+        cores = tuple(getattr(module, "FMU_CORE_MODULES", ()))
+        extra = {
+            "requirements": tuple(getattr(module, "FMU_REQUIREMENTS", ())),
+            "handles_state": "_get_fmu_state" in vars(cls) and "_set_fmu_state" in vars(cls),
+        }
+        if hasattr(module, "N_STOREYS"):
+            for n in sorted({module.N_STOREYS, *storeys}):
+                found.append(FmuSource(script, cls.__name__, cores, storeys=n, **extra))
+        else:
+            found.append(FmuSource(script, cls.__name__, cores, **extra))
+    return found
+
+
+def is_stale(source: FmuSource, fmu: Path) -> bool:
+    """True if the FMU is missing or older than any of its sources."""
+    if not fmu.exists():
+        return True
+    built = fmu.stat().st_mtime
+    return any(p.stat().st_mtime > built for p in source.sources)
+
+
+def _render_script(source: FmuSource, workdir: Path) -> Path:
+    """The shell as it goes into the FMU: a storey variant gets its own module name."""
+    if source.storeys is None:
+        return source.script
+    stem = f"{source.script.stem.removesuffix('_fmu')}_n{source.storeys}_fmu"
+    text = source.script.read_text()
+    text, count = re.subn(r"^N_STOREYS = \d+$", f"N_STOREYS = {source.storeys}", text, flags=re.M)
+    if count != 1:
+        raise BuildError(f"{source.script}: needs exactly one line 'N_STOREYS = <int>'")
+    target = workdir / f"{stem}.py"
+    target.write_text(text)
+    return target
+
+
+def _declared_metadata(script: Path) -> tuple[dict[str, str], dict[str, tuple[str, ...]], dict[str, float]]:
+    from pythonfmu import Real
+    from pythonfmu.variables import ScalarVariable
+
+    module = _load_module(script, f"_meta_{script.stem}")
+    instance = _shell_class(module)(instance_name="build", resources=str(script.parent))
+    starts = {v.name: float(v.getter()) for v in instance.vars.values()
+              if isinstance(v, Real) and ScalarVariable.requires_start(v)}
+    return dict(instance.fmi_units), dict(instance.fmi_dependencies), starts
+
+
+PYTHON_REQUIREMENT = "Python >= 3.11 (CPython, the interpreter of the host process)"
+
+
+def _requirements_text(source: FmuSource) -> str:
+    lines = [
+        f"# {source.fmu_name} runs Python code through pythonfmu: the host process must provide",
+        f"# {PYTHON_REQUIREMENT} with these packages installed:",
+        *source.requirements,
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _documentation(source: FmuSource) -> str:
+    packages = ", ".join(source.requirements) or "none besides the standard library"
+    return (
+        f"<html><head><title>{source.class_name}</title></head><body>"
+        f"<h1>{source.class_name}</h1>"
+        f"<p>An FMI 2.0 co-simulation unit of the mre-cosim toolkit, built with pythonfmu. It executes "
+        f"Python: the importing tool must run it in a process with {PYTHON_REQUIREMENT}; packages: "
+        f"{packages} (also listed in resources/requirements.txt).</p>"
+        f"<p>Variables, units and their meaning: see modelDescription.xml and the project README.</p>"
+        f"</body></html>\n"
+    )
+
+
+def build(source: FmuSource, dest: Path) -> Path:
+    """Build one FMU into ``dest`` and complete its modelDescription; returns its path."""
+    from pythonfmu import FmuBuilder
+
+    dest.mkdir(parents=True, exist_ok=True)
+    target = dest / source.fmu_name
+    with tempfile.TemporaryDirectory(prefix="mre_build_") as tmp:
+        tmp = Path(tmp)
+        script = _render_script(source, tmp)
+        cores = [CORES_DIR / f"{m}.py" for m in source.core_modules]
+        requirements = tmp / "requirements.txt"
+        requirements.write_text(_requirements_text(source))
+        docs = tmp / "documentation"
+        docs.mkdir()
+        (docs / "index.html").write_text(_documentation(source))
+        options = {"canGetAndSetFMUstate": True} if source.handles_state else {}
+        sys.path.insert(0, str(CORES_DIR))
+        try:
+            raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=[*cores, requirements],
+                                       documentation_folder=docs, **options)
+            units, deps, starts = _declared_metadata(script)
+        except Exception as exc:  # pythonfmu raises plain exceptions
+            raise BuildError(f"building {source.fmu_name} from {source.script.name}: {exc}") from exc
+        finally:
+            sys.path.remove(str(CORES_DIR))
+            sys.modules.pop(script.stem, None)
+        # Written next to the target and renamed: a concurrent reader never sees half an FMU.
+        fd, partial = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=dest)
+        os.close(fd)
+        try:
+            with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
+                for item in zin.infolist():
+                    data = zin.read(item.filename)
+                    if item.filename == "modelDescription.xml":
+                        data = complete_model_description(data, units, deps, starts)
+                    elif item.filename.startswith("binaries/linux64/"):
+                        data = remove_exit_hook(data, f"{source.fmu_name}:{item.filename}")
+                    zout.writestr(item, data)
+            os.chmod(partial, 0o644)
+            os.replace(partial, target)
+        except ExitHookError as exc:
+            Path(partial).unlink(missing_ok=True)
+            raise BuildError(str(exc)) from None
+        except BaseException:
+            Path(partial).unlink(missing_ok=True)
+            raise
+    return target
+
+
+def known_fmu(path: Path) -> FmuSource | None:
+    """The source of an FMU path in the project's fmus/ folder, if the project builds it."""
+    path = Path(path).resolve()
+    if path.parent != DEFAULT_FMU_DIR.resolve():
+        return None
+    m = re.fullmatch(r"([A-Za-z]+?)(\d+)?\.fmu", path.name)
+    storeys = (int(m.group(2)),) if m and m.group(2) else ()
+    for source in discover(storeys):
+        if source.fmu_name == path.name:
+            return source
+    return None
+
+
+

@@ -1,0 +1,140 @@
+"""Second-order sliding-mode (SOSM) current controller, Eq. (27)-(39) of the paper.
+
+Sliding variable s = x_b' + lambda x_b [m/s] and its derivative s' = x_b'' + lambda x_b'
+[m/s^2], from the measured base displacement x_b [m], velocity [m/s] and relative
+acceleration [m/s^2]. The control is the current rate u = di/dt [A/s], given by the
+quasi-continuous law of Eq. (39):
+
+    u1 = clip(-zeta * (s' |s|^-1/2 + theta sign(s)), -rho, rho)    if s != 0
+    u2 = -rho sign(s')                                              if s == 0
+
+Sign handling (the paper's Eq. 36 assumes d s''/du = Psi > 0, but Psi of Eq. 34 has the
+sign of -(c_E1 x_b' + k_E1 x_b + alpha_1 sinh(beta x_b) + alpha(i) beta_1 x_b cosh(beta x_b)),
+which flips with the motion): the applied rate is sign(Psi) * u, evaluated from the
+measurements and the controller's model of the isolator (Table 2 by default), and 0
+where Psi = 0. This makes the reaching condition hold on both sides of x_b = 0.
+
+The current is integrated with forward Euler over each control step and held in
+[0, i_max] by clipping (the integrator does not wind up past either bound, which is
+Eq. 39's "u = 0 if i > i_M" extended to the lower bound).
+
+Gain units: lambda [1/s], rho [A/s], zeta [A s^0.5 m^-0.5], theta [m^0.5 s^-1.5].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class IsolatorModel:
+    """The controller's model of the isolator: the coefficients of Eq. (13)-(16) that Psi
+    (Eq. 34) needs, SI units, per device. Defaults: Table 2 of the paper.
+
+    Kept in this module (not imported from the isolator's core) so that the controller FMU
+    carries no module another FMU also carries; any object with these attributes (e.g.
+    :class:`mre_isolator_core.GeneralizedCoefficients`) can stand in for it.
+    """
+
+    c0_0: float = 576.7  # N*s/(m*A)   (0.5767 N*s/mm/A)
+    k0_0: float = 5816.1  # N/(m*A)    (5.8161 N/mm/A)
+    alpha_0: float = 4.9810  # N/A
+    alpha_1: float = 8.1100  # N
+    beta_0: float = 132.2  # 1/(m*A)   (0.1322 1/mm/A)
+    beta_1: float = 346.3  # 1/m       (0.3463 1/mm)
+
+
+def _sinh(z: float) -> float:
+    try:
+        return math.sinh(z)
+    except OverflowError:
+        return math.copysign(math.inf, z)
+
+
+def _cosh(z: float) -> float:
+    try:
+        return math.cosh(z)
+    except OverflowError:
+        return math.inf
+
+
+@dataclass(frozen=True)
+class SosmGains:
+    """Controller gains (README, SOSM gains)."""
+
+    # Defaults: the gains tuned on El Centro by orchestration/studies/tuning.py
+    # (scenarios/sosm_gains.yaml; a test keeps the two equal).
+    lam: float = 13.75636215239138  # 1/s
+    rho: float = 7.0795685336274365  # A/s
+    zeta: float = 18.316074974976253  # A s^0.5 m^-0.5
+    theta: float = 1.6969098646453915  # m^0.5 s^-1.5
+    i_max: float = 3.0  # A
+
+    def __post_init__(self) -> None:
+        for name in ("lam", "rho", "zeta", "theta", "i_max"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"SOSM gain {name} must be positive and finite, got {value}")
+
+
+# The hand-picked gains used before tuning (and as the tuning's starting point).
+HAND_PICKED_GAINS = SosmGains(lam=5.0, rho=20.0, zeta=25.0, theta=1.0)
+
+
+def sliding_variable(x: float, v: float, a: float, lam: float) -> tuple[float, float]:
+    """(s [m/s], s' [m/s^2]) from base displacement x [m], velocity v [m/s], acceleration a [m/s^2]."""
+    return v + lam * x, a + lam * v
+
+
+def quasi_continuous_rate(s: float, sdot: float, gains: SosmGains) -> float:
+    """Current rate u [A/s] of Eq. (39) for Psi > 0, before the current bounds."""
+    if s != 0.0:
+        raw = -gains.zeta * (sdot / math.sqrt(abs(s)) + gains.theta * math.copysign(1.0, s))
+        return min(gains.rho, max(-gains.rho, raw))
+    if sdot == 0.0:
+        return 0.0
+    return -gains.rho * math.copysign(1.0, sdot)
+
+
+def control_direction(x: float, v: float, i: float, coeffs: IsolatorModel | None = None) -> float:
+    """sign(Psi) of Eq. (34): +1, -1, or 0 where the current has no first-order effect.
+
+    x [m], v [m/s], i [A]; ``coeffs`` is the isolator model (Table 2 by default).
+    """
+    coeffs = coeffs if coeffs is not None else _TABLE2
+    alpha = coeffs.alpha_0 * i + coeffs.alpha_1
+    beta = coeffs.beta_0 * i + coeffs.beta_1
+    bracket = (
+        coeffs.c0_0 * v
+        + coeffs.k0_0 * x
+        + coeffs.alpha_0 * _sinh(beta * x)
+        + alpha * coeffs.beta_0 * x * _cosh(beta * x)
+    )
+    if bracket == 0.0 or math.isnan(bracket):
+        return 0.0
+    return -math.copysign(1.0, bracket)
+
+
+_TABLE2 = IsolatorModel()
+
+
+class SosmController:
+    """Discrete SOSM current controller: ``update`` advances the current over one step."""
+
+    def __init__(
+        self, gains: SosmGains | None = None, coeffs: IsolatorModel | None = None, i0: float = 0.0
+    ) -> None:
+        self.gains = gains if gains is not None else SosmGains()
+        self.coeffs = coeffs if coeffs is not None else _TABLE2
+        self.i = min(max(i0, 0.0), self.gains.i_max)
+
+    def rate(self, x: float, v: float, a: float) -> float:
+        """Applied current rate di/dt [A/s] for the measurements and the present current."""
+        s, sdot = sliding_variable(x, v, a, self.gains.lam)
+        return control_direction(x, v, self.i, self.coeffs) * quasi_continuous_rate(s, sdot, self.gains)
+
+    def update(self, x: float, v: float, a: float, h: float) -> float:
+        """Integrate the current over h [s] with the measurements held; returns i [A]."""
+        self.i = min(max(self.i + h * self.rate(x, v, a), 0.0), self.gains.i_max)
+        return self.i

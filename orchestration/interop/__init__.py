@@ -1,0 +1,1 @@
+"""Interoperability: SSP 1.0 packages and running our system in libcosim."""

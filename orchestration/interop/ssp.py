@@ -1,0 +1,557 @@
+"""SSP 1.0 packages: export any scenario to ``.ssp`` and load an ``.ssp`` as a runnable scenario.
+
+Package layout written by :func:`export_ssp`::
+
+    SystemStructure.ssd          ssd:SystemStructureDescription (SSP 1.0)
+    resources/<Model>.fmu        every FMU the scenario uses (once per file)
+    resources/<unit>.ssv         ssv:ParameterSet with the scenario's parameter values of a unit
+    resources/<record>           data files named with ``!data`` (ground-motion records)
+
+The SSD holds one ``ssd:System`` with a ``ssd:Component`` per unit (``source`` =
+``resources/<Model>.fmu``), its ``ssd:Connectors`` (every input, output and parameter of
+the FMU, with its kind and ``ssc:Real unit``), the connections, the units' definitions
+(``ssd:Units``) and ``ssd:DefaultExperiment`` (start and stop time). What SSP 1.0 has no
+element for travels in annotations of type ``org.mre-cosim.*`` that other tools ignore:
+
+* ``org.mre-cosim.scenario`` (in DefaultExperiment): every scenario setting besides the
+  units, connections and times, as JSON (communication step, algorithm, stepping order,
+  input rule, recorded outputs, report roles, limits, results folder, description);
+* ``org.mre-cosim.connection`` (on a Connection): ``delayed="true"``;
+* ``org.mre-cosim.data-file`` (on an ssv:Parameter): the String value is a file of the
+  package, a path relative to the package root (``resources/kobe.csv``). A tool that
+  does not know the annotation passes the string on unchanged, which works when it runs
+  from the extracted package's root folder.
+
+:func:`load_ssp` extracts a package into a folder, validates the SSD and parameter sets
+against the SSP 1.0 schemas fmpy ships, checks every reference (FMU files, parameter
+sets, data files, connection endpoints against the declared connectors and the FMUs'
+variables) and returns a :class:`LoadedSsp`, a :class:`~orchestration.master.scenario.LoadedScenario`
+whose problems point at lines of the SSD or SSV files. ``system.resolve`` and
+``session.run_plan`` take it like one loaded from YAML.
+
+The command-line tool is ``orchestration/ssp.py`` (``export`` and ``check``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import weakref
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from lxml import etree
+from pydantic import ValidationError
+
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.fmu_file import FmuFormatError, read_description
+from orchestration.master.scenario import LoadedScenario, Scenario, validation_problems
+from orchestration.master.system import SystemPlan
+from orchestration.master.yaml_source import DataFile, Lines, apply_override
+
+SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+MRE = "urn:mre-cosim:ssp:1"
+NS = {"ssd": SSD, "ssc": SSC, "ssv": SSV, "mre": MRE}
+SSD_FILE = "SystemStructure.ssd"
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+SSV_TYPE = "application/x-ssp-parameter-set"
+SETTINGS_ANNOTATION = "org.mre-cosim.scenario"
+CONNECTION_ANNOTATION = "org.mre-cosim.connection"
+DATA_FILE_ANNOTATION = "org.mre-cosim.data-file"
+CONNECTOR_KINDS = ("input", "output", "parameter", "calculatedParameter")
+_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+
+
+def _q(prefix: str, tag: str) -> str:
+    return f"{{{NS[prefix]}}}{tag}"
+
+
+def schema_dir() -> Path:
+    """The SSP 1.0 XML schemas shipped with fmpy."""
+    import fmpy.ssp
+
+    return Path(fmpy.ssp.__file__).resolve().parent / "schema"
+
+
+_SCHEMAS: dict[str, etree.XMLSchema] = {}
+
+
+def schema_errors(root: etree._Element, schema_file: str) -> list[tuple[int | None, str]]:
+    """(line, message) for every violation of an SSP schema (empty when valid)."""
+    if schema_file not in _SCHEMAS:
+        _SCHEMAS[schema_file] = etree.XMLSchema(etree.parse(str(schema_dir() / schema_file)))
+    schema = _SCHEMAS[schema_file]
+    if schema.validate(root):
+        return []
+    return [(e.line, e.message) for e in schema.error_log]
+
+
+# -- export -------------------------------------------------------------------------------------
+
+
+def _unique_names(paths: list[Path]) -> dict[Path, str]:
+    """File name in resources/ per distinct source file (suffixed where names collide)."""
+    names: dict[Path, str] = {}
+    taken: set[str] = set()
+    for path in paths:
+        if path in names:
+            continue
+        stem, suffix, k = path.stem, path.suffix, 1
+        name = path.name
+        while name in taken:
+            k += 1
+            name = f"{stem}_{k}{suffix}"
+        taken.add(name)
+        names[path] = name
+    return names
+
+
+def _annotation(parent: etree._Element, prefix: str, kind: str) -> etree._Element:
+    annotations = etree.SubElement(parent, _q(prefix, "Annotations"))
+    return etree.SubElement(annotations, _q("ssc", "Annotation"), type=kind)
+
+
+def _settings(scenario: Scenario) -> dict[str, Any]:
+    """The scenario's settings SSP has no element for (JSON-ready): everything but units and connections."""
+    def compact(value: Any) -> Any:  # variable references as "unit.variable", as in YAML
+        if isinstance(value, dict):
+            if set(value) == {"unit", "name"}:
+                return f"{value['unit']}.{value['name']}"
+            return {k: compact(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [compact(v) for v in value]
+        return value
+
+    settings = compact(scenario.model_dump(mode="json", exclude={"name", "units", "connections"}))
+    for key in ("start_time", "stop_time"):  # in DefaultExperiment
+        settings["simulation"].pop(key)
+    return {"format": 1, **settings}
+
+
+def _unit_definitions(plan: SystemPlan, used: set[str]) -> dict[str, Any]:
+    """Unit name -> fmpy BaseUnit (or None) from the FMUs' UnitDefinitions."""
+    from fmpy import read_model_description
+
+    found: dict[str, Any] = {}
+    for path in set(plan.fmu_paths.values()):
+        for unit in read_model_description(str(path), validate=False).unitDefinitions:
+            if unit.name in used:
+                found.setdefault(unit.name, unit.baseUnit)
+    for name in used:
+        found.setdefault(name, None)
+    return found
+
+
+def _write_units(parent: etree._Element, prefix: str, definitions: dict[str, Any]) -> None:
+    if not definitions:
+        return
+    units = etree.SubElement(parent, _q(prefix, "Units"))
+    for name in sorted(definitions):
+        unit = etree.SubElement(units, _q("ssc", "Unit"), name=name)
+        base = definitions[name]
+        attrs = {}
+        if base is not None:
+            for key in ("kg", "m", "s", "A", "K", "mol", "cd", "rad"):
+                if getattr(base, key):
+                    attrs[key] = str(getattr(base, key))
+            if base.factor != 1.0:
+                attrs["factor"] = repr(float(base.factor))
+            if base.offset != 0.0:
+                attrs["offset"] = repr(float(base.offset))
+        etree.SubElement(unit, _q("ssc", "BaseUnit"), attrs)
+
+
+def _parameter_set(plan: SystemPlan, unit: str, data_names: dict[str, str]) -> etree._Element:
+    desc = plan.descriptions[unit]
+    root = etree.Element(_q("ssv", "ParameterSet"), nsmap={"ssv": SSV, "ssc": SSC}, version="1.0", name=unit)
+    params = etree.SubElement(root, _q("ssv", "Parameters"))
+    used: set[str] = set()
+    for pname, value in plan.parameters[unit].items():
+        var = desc.variables[pname]
+        node = etree.SubElement(params, _q("ssv", "Parameter"), name=pname)
+        key = f"{unit}.{pname}"
+        if key in data_names:
+            etree.SubElement(node, _q("ssv", "String"), value=f"resources/{data_names[key]}")
+            _annotation(node, "ssv", DATA_FILE_ANNOTATION)
+        elif var.type == "Real":
+            attrs = {"value": repr(float(value))}
+            if var.unit:
+                attrs["unit"] = var.unit
+                used.add(var.unit)
+            etree.SubElement(node, _q("ssv", "Real"), attrs)
+        elif var.type in ("Integer", "Enumeration"):
+            etree.SubElement(node, _q("ssv", "Integer"), value=str(int(value)))
+        elif var.type == "Boolean":
+            etree.SubElement(node, _q("ssv", "Boolean"), value="true" if value else "false")
+        else:
+            etree.SubElement(node, _q("ssv", "String"), value=str(value))
+    _write_units(root, "ssv", _unit_definitions(plan, used) if used else {})
+    return root
+
+
+def _system_structure(plan: SystemPlan, fmu_names: dict[Path, str], with_ssv: set[str]) -> etree._Element:
+    sc = plan.loaded.scenario
+    root = etree.Element(_q("ssd", "SystemStructureDescription"), nsmap={"ssd": SSD, "ssc": SSC, "mre": MRE},
+                         version="1.0", name=sc.name, generationTool="mre-cosim orchestration/interop/ssp.py")
+    system = etree.SubElement(root, _q("ssd", "System"), name=sc.name)
+    if sc.description:
+        system.set("description", sc.description)
+    elements = etree.SubElement(system, _q("ssd", "Elements"))
+    used: set[str] = set()
+    for unit, desc in plan.descriptions.items():
+        comp = etree.SubElement(elements, _q("ssd", "Component"), name=unit, type=FMU_TYPE,
+                                source=f"resources/{fmu_names[plan.fmu_paths[unit]]}")
+        connectors = etree.SubElement(comp, _q("ssd", "Connectors"))
+        for var in desc.variables.values():
+            if var.causality not in CONNECTOR_KINDS:
+                continue
+            conn = etree.SubElement(connectors, _q("ssd", "Connector"), name=var.name, kind=var.causality)
+            if var.type == "Real":
+                etree.SubElement(conn, _q("ssc", "Real"), {"unit": var.unit} if var.unit else {})
+                if var.unit:
+                    used.add(var.unit)
+            elif var.type in ("Integer", "Boolean", "String"):
+                etree.SubElement(conn, _q("ssc", var.type))
+        if unit in with_ssv:
+            bindings = etree.SubElement(comp, _q("ssd", "ParameterBindings"))
+            etree.SubElement(bindings, _q("ssd", "ParameterBinding"), type=SSV_TYPE, source=f"resources/{unit}.ssv")
+    if sc.connections:
+        connections = etree.SubElement(system, _q("ssd", "Connections"))
+        for c in sc.connections:
+            node = etree.SubElement(connections, _q("ssd", "Connection"), startElement=c.source.unit,
+                                    startConnector=c.source.name, endElement=c.target.unit,
+                                    endConnector=c.target.name)
+            if c.delayed:
+                ann = _annotation(node, "ssd", CONNECTION_ANNOTATION)
+                etree.SubElement(ann, _q("mre", "Coupling"), delayed="true")
+    _write_units(root, "ssd", _unit_definitions(plan, used))
+    sim = sc.simulation
+    experiment = etree.SubElement(root, _q("ssd", "DefaultExperiment"), startTime=repr(float(sim.start_time)),
+                                  stopTime=repr(float(sim.stop_time)))
+    ann = _annotation(experiment, "ssd", SETTINGS_ANNOTATION)
+    etree.SubElement(ann, _q("mre", "Settings")).text = json.dumps(_settings(sc), indent=1)
+    return root
+
+
+def _check_schema(root: etree._Element, schema_file: str, name: str) -> None:
+    errors = schema_errors(root, schema_file)
+    if errors:  # a bug in the exporter, not a user error
+        raise RuntimeError(f"exported {name} violates {schema_file}: " + "; ".join(f"line {n}: {m}" for n, m in errors))
+
+
+def export_ssp(plan: SystemPlan, dest: Path | str) -> Path:
+    """Write a checked scenario as an SSP 1.0 package; returns its path.
+
+    The FMUs and data files are copied into the package.
+    """
+    dest = Path(dest)
+    fmu_names = _unique_names(list(plan.fmu_paths.values()))
+    data_names_by_path = _unique_names(list(plan.data_files.values()))
+    data_names = {key: data_names_by_path[p] for key, p in plan.data_files.items()}
+    if set(fmu_names.values()) & set(data_names.values()):
+        raise ScenarioError("a data file has the same name as an FMU; rename one of them")
+    ssv = {unit: _parameter_set(plan, unit, data_names) for unit in plan.descriptions if plan.parameters[unit]}
+    ssd = _system_structure(plan, fmu_names, set(ssv))
+    _check_schema(ssd, "SystemStructureDescription.xsd", SSD_FILE)
+    for unit, root in ssv.items():
+        _check_schema(root, "SystemStructureParameterValues.xsd", f"{unit}.ssv")
+
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")
+    try:
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr(SSD_FILE, etree.tostring(ssd, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+            for path, name in fmu_names.items():
+                z.write(path, f"resources/{name}")
+            for unit, root in ssv.items():
+                z.writestr(f"resources/{unit}.ssv",
+                           etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+            for path, name in data_names_by_path.items():
+                z.write(path, f"resources/{name}")
+        os.replace(partial, dest)
+    finally:
+        if partial.exists():
+            partial.unlink()
+    return dest
+
+
+# -- import -------------------------------------------------------------------------------------
+
+
+class LoadedSsp(LoadedScenario):
+    """A scenario loaded from an SSP package; ``workdir`` holds the extracted package."""
+
+    def __init__(self, scenario: Scenario, path: Path, lines: Lines, raw: dict[str, Any], workdir: Path,
+                 owned: bool) -> None:
+        super().__init__(scenario, path, lines, raw)
+        self.workdir = workdir
+        self._cleanup = weakref.finalize(self, shutil.rmtree, workdir, True) if owned else None
+
+    def cleanup(self) -> None:
+        """Delete the extracted package if load_ssp created its folder (also done when collected)."""
+        if self._cleanup is not None:
+            self._cleanup()
+
+
+class _Reader:
+    """Reads one extracted package, collecting problems with their file and line."""
+
+    def __init__(self, ssp: Path, root_dir: Path) -> None:
+        self.ssp = ssp
+        self.dir = root_dir
+        self.problems: list[Problem] = []
+        self.lines: Lines = {}
+
+    def label(self, member: str) -> str:
+        return f"{self.ssp}!/{member}"
+
+    def problem(self, message: str, key: str, member: str, node: etree._Element | None = None) -> None:
+        self.problems.append(Problem(message, key, self.label(member), None if node is None else node.sourceline))
+
+    def at(self, key: tuple[Any, ...], member: str, node: etree._Element) -> None:
+        self.lines[key] = (self.label(member), node.sourceline)
+
+    def member(self, reference: str) -> Path | None:
+        """The extracted file a package-relative reference names, or None (no schemes, no escaping)."""
+        if not reference or ":" in reference.split("/")[0]:
+            return None
+        rel = PurePosixPath(reference)
+        if rel.is_absolute() or ".." in rel.parts:
+            return None
+        path = self.dir.joinpath(*rel.parts)
+        return path if path.is_file() else None
+
+    def parse(self, member: str, schema_file: str, key: str) -> etree._Element | None:
+        path = self.member(member)
+        if path is None:
+            return None
+        try:
+            root = etree.parse(str(path)).getroot()
+        except etree.XMLSyntaxError as exc:
+            self.problems.append(Problem(f"not well-formed XML: {exc}", key, self.label(member), exc.lineno))
+            return None
+        for line, message in schema_errors(root, schema_file):
+            self.problems.append(Problem(f"{schema_file}: {message}", key, self.label(member), line))
+        return root
+
+
+def _annotation_of(node: etree._Element, prefix: str, kind: str) -> etree._Element | None:
+    for ann in node.findall(f"{prefix}:Annotations/ssc:Annotation", NS):
+        if ann.get("type") == kind:
+            return ann
+    return None
+
+
+def _typed_value(node: etree._Element) -> tuple[str, Any] | None:
+    for kind in (*_TYPES, "Binary"):
+        value = node.find(f"ssv:{kind}", NS)
+        if value is None:
+            continue
+        text = value.get("value", "")
+        if kind == "Real":
+            return kind, float(text)
+        if kind == "Integer":
+            return kind, int(text)
+        if kind == "Boolean":
+            return kind, text.strip() in ("true", "1")
+        if kind == "String":
+            return kind, text
+        return kind, None
+    return None
+
+
+def _read_parameters(reader: _Reader, unit: str, comp: etree._Element) -> dict[str, Any]:
+    params: dict[str, Any] = {}
+    for b, binding in enumerate(comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)):
+        key = f"units.{unit}.parameters"
+        if binding.find("ssd:ParameterMapping", NS) is not None:
+            reader.problem(f"component '{unit}': parameter mappings are not supported", key, SSD_FILE, binding)
+            continue
+        if binding.get("sourceBase", "SSD") != "SSD":
+            reader.problem(f"component '{unit}': only parameter sets relative to the SSD are supported",
+                           key, SSD_FILE, binding)
+            continue
+        source = binding.get("source")
+        if source is not None:
+            member = source
+            root = reader.parse(source, "SystemStructureParameterValues.xsd", key)
+            if root is None and reader.member(source) is None:
+                reader.problem(f"component '{unit}': parameter set '{source}' is not in the package",
+                               key, SSD_FILE, binding)
+            if root is None:
+                continue
+        else:
+            member = SSD_FILE
+            root = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
+            if root is None:
+                reader.problem(f"component '{unit}': parameter binding {b} has neither a source nor values",
+                               key, SSD_FILE, binding)
+                continue
+        prefix = binding.get("prefix", "")
+        for p in root.findall("ssv:Parameters/ssv:Parameter", NS):
+            name = p.get("name", "")
+            if prefix and name.startswith(prefix):
+                name = name[len(prefix):]
+            pkey = ("units", unit, "parameters", name)
+            reader.at(pkey, member, p)
+            typed = _typed_value(p)
+            if typed is None or typed[1] is None:
+                kind = "no value" if typed is None else f"a {typed[0]} value"
+                reader.problem(f"component '{unit}', parameter '{name}': {kind} is not supported",
+                               ".".join(pkey), member, p)
+                continue
+            kind, value = typed
+            if kind == "String" and _annotation_of(p, "ssv", DATA_FILE_ANNOTATION) is not None:
+                path = reader.member(value)
+                if path is None:
+                    reader.problem(f"component '{unit}', parameter '{name}': data file '{value}' is not in the package",
+                                   ".".join(pkey), member, p)
+                    continue
+                value = DataFile(str(path))
+            params[name] = value
+    return params
+
+
+def _read_settings(reader: _Reader, ssd: etree._Element) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(simulation, other settings) from DefaultExperiment and the scenario annotation."""
+    simulation: dict[str, Any] = {}
+    settings: dict[str, Any] = {}
+    experiment = ssd.find("ssd:DefaultExperiment", NS)
+    if experiment is None:
+        reader.problem("the SSD has no DefaultExperiment (start and stop time)", "simulation", SSD_FILE, ssd)
+        return simulation, settings
+    reader.at(("simulation",), SSD_FILE, experiment)
+    for attr, key in (("startTime", "start_time"), ("stopTime", "stop_time")):
+        if experiment.get(attr) is not None:
+            simulation[key] = float(experiment.get(attr))
+    ann = _annotation_of(experiment, "ssd", SETTINGS_ANNOTATION)
+    node = None if ann is None else ann.find("mre:Settings", NS)
+    if node is not None:
+        try:
+            settings = json.loads(node.text or "{}")
+        except json.JSONDecodeError as exc:
+            reader.problem(f"unreadable {SETTINGS_ANNOTATION} annotation: {exc}", "simulation", SSD_FILE, node)
+            settings = {}
+        if not isinstance(settings, dict) or not isinstance(settings.get("simulation", {}), dict):
+            reader.problem(f"the {SETTINGS_ANNOTATION} annotation must be a JSON object", "simulation", SSD_FILE, node)
+            settings = {}
+        for key, value in (settings.pop("simulation", None) or {}).items():
+            if value is not None:
+                simulation[key] = value
+    return simulation, settings
+
+
+def _read_system(reader: _Reader, ssd: etree._Element) -> dict[str, Any]:
+    system = ssd.find("ssd:System", NS)
+    data: dict[str, Any] = {"name": ssd.get("name") or reader.ssp.stem, "units": {}, "connections": []}
+    reader.at(("units",), SSD_FILE, system)
+    if system.find("ssd:Elements/ssd:System", NS) is not None:
+        reader.problem("nested systems are not supported", "units", SSD_FILE, system)
+    if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None:
+        reader.problem("signal dictionaries are not supported", "units", SSD_FILE, system)
+    connectors: dict[str, dict[str, str]] = {}
+    for comp in system.findall("ssd:Elements/ssd:Component", NS):
+        unit = comp.get("name", "")
+        key = f"units.{unit}.fmu"
+        reader.at(("units", unit), SSD_FILE, comp)
+        if comp.get("type", FMU_TYPE) != FMU_TYPE:
+            reader.problem(f"component '{unit}': type {comp.get('type')!r} is not an FMU", key, SSD_FILE, comp)
+            continue
+        source = comp.get("source", "")
+        path = reader.member(source)
+        declared = {c.get("name"): c.get("kind") for c in comp.findall("ssd:Connectors/ssd:Connector", NS)}
+        connectors[unit] = declared
+        data["units"][unit] = {"fmu": str(path) if path else source, "parameters": _read_parameters(reader, unit, comp)}
+        if path is None:
+            reader.problem(f"component '{unit}': FMU '{source}' is not in the package", key, SSD_FILE, comp)
+            continue
+        try:
+            desc, _ = read_description(path, unit)
+        except FmuFormatError as exc:
+            reader.problem(f"component '{unit}': {exc}", key, SSD_FILE, comp)
+            continue
+        for c in comp.findall("ssd:Connectors/ssd:Connector", NS):
+            if c.get("name") not in desc.variables:
+                reader.problem(f"component '{unit}': connector '{c.get('name')}' is not a variable of its FMU "
+                               f"{source}", f"units.{unit}", SSD_FILE, c)
+    for k, conn in enumerate(system.findall("ssd:Connections/ssd:Connection", NS)):
+        reader.at(("connections", k), SSD_FILE, conn)
+        ends = []
+        text = (f"connection {k} ({conn.get('startElement')}.{conn.get('startConnector')} -> "
+                f"{conn.get('endElement')}.{conn.get('endConnector')})")
+        for side in ("start", "end"):
+            element, connector = conn.get(f"{side}Element"), conn.get(f"{side}Connector")
+            if element is None:
+                reader.problem(f"{text}: connections to the system's own connectors are not supported",
+                               f"connections.{k}", SSD_FILE, conn)
+            elif element not in connectors:
+                names = ", ".join(connectors) or "none"
+                reader.problem(f"{text}: no component named '{element}' (components: {names})",
+                               f"connections.{k}", SSD_FILE, conn)
+            elif connector not in connectors[element]:
+                reader.problem(f"{text}: component '{element}' has no connector '{connector}'",
+                               f"connections.{k}", SSD_FILE, conn)
+            else:
+                ends.append(f"{element}.{connector}")
+        if conn.find("ssc:*", NS) is not None:  # LinearTransformation, BooleanMappingTransformation, ...
+            reader.problem(f"connection {k}: transformations are not supported", f"connections.{k}", SSD_FILE, conn)
+            continue
+        if len(ends) == 2:
+            ann = _annotation_of(conn, "ssd", CONNECTION_ANNOTATION)
+            coupling = None if ann is None else ann.find("mre:Coupling", NS)
+            delayed = coupling is not None and coupling.get("delayed") == "true"
+            data["connections"].append({"source": ends[0], "target": ends[1], "delayed": delayed})
+    return data
+
+
+def load_ssp(path: Path | str, overrides: tuple[str, ...] = (), workdir: Path | None = None) -> LoadedSsp:
+    """Extract, validate and read an SSP package into a scenario. Raises ScenarioError with every problem.
+
+    ``workdir``: folder to extract into (kept); by default a temporary folder deleted with
+    the returned object (or by its ``cleanup()``).
+    """
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ScenarioError(Problem("no such SSP file", "", str(path)))
+    if not zipfile.is_zipfile(path):
+        raise ScenarioError(Problem("not an SSP package (not a zip archive)", "", str(path)))
+    owned = workdir is None
+    target = Path(tempfile.mkdtemp(prefix="mre_ssp_")) if owned else Path(workdir)
+    try:
+        with zipfile.ZipFile(path) as z:
+            if SSD_FILE not in z.namelist():
+                raise ScenarioError(Problem(f"not an SSP package (no {SSD_FILE} at its root)", "", str(path)))
+            z.extractall(target)
+        reader = _Reader(path, target.resolve())
+        ssd = reader.parse(SSD_FILE, "SystemStructureDescription.xsd", "")
+        if ssd is None or reader.problems:
+            raise ScenarioError(reader.problems or Problem(f"cannot read {SSD_FILE}", "", str(path)))
+        data = _read_system(reader, ssd)
+        simulation, settings = _read_settings(reader, ssd)
+        data["simulation"] = simulation
+        settings.pop("format", None)
+        data.update(settings)
+        if reader.problems:
+            raise ScenarioError(reader.problems)
+        lines = reader.lines
+        unit_names = set(data["units"])
+        for assignment in overrides:
+            apply_override(data, lines, assignment, unit_names)
+        if "step" not in data["simulation"]:
+            raise ScenarioError(Problem(
+                f"the package gives no communication step (no {SETTINGS_ANNOTATION} annotation): "
+                "give one with --set simulation.step=H", "simulation.step", reader.label(SSD_FILE)))
+        try:
+            scenario = Scenario.model_validate(data)
+        except ValidationError as exc:
+            raise ScenarioError(validation_problems(exc, lines, path, Scenario)) from None
+    except BaseException:
+        if owned:
+            shutil.rmtree(target, ignore_errors=True)
+        raise
+    return LoadedSsp(scenario, path, lines, data, target, owned)

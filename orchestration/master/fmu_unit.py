@@ -1,0 +1,264 @@
+"""FMI 2.0 co-simulation units through fmpy.
+
+FMI status codes become :class:`~orchestration.master.errors.UnitCallError` only through
+:func:`orchestration.master.fmi_status.check_status`, called by :meth:`FmuUnit._check`. The
+hot path (get, set, step) calls the FMU's C functions through fmpy's ctypes bindings with
+value-reference and value arrays prepared once.
+"""
+
+from __future__ import annotations
+
+import itertools
+import shutil
+import weakref
+from collections.abc import Callable, Sequence
+from ctypes import byref, c_double, c_uint, c_void_p, cast
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestration.master.errors import SimulationError, UnitCallError
+from orchestration.master.fmi_status import STATUS_LABELS, LogRecord, check_status
+from orchestration.master.fmu_file import ValueBuffer, load_slave, read_description
+
+# fmpy's native logger proxy (it formats printf-style messages) keeps ONE target function
+# for the whole process, so all units share one Python logger; it dispatches each message
+# to its unit through the componentEnvironment pointer the unit passed at instantiation.
+_LOG_TARGETS: dict[int, weakref.ref] = {}
+_ENV_KEYS = itertools.count(1)
+_CALLBACKS = None
+
+
+def _dispatch_log(env, instance, status, category, message) -> None:
+    ref = _LOG_TARGETS.get(env or 0)
+    unit = ref() if ref is not None else None
+    if unit is not None:
+        unit._receive_log(status, category, message)
+    else:  # an instance made elsewhere with fmpy's default callbacks: print as fmpy would
+        from fmpy.fmi1 import printLogMessage
+
+        printLogMessage(env, instance, status, category, message)
+
+
+def _shared_callbacks():
+    global _CALLBACKS
+    if _CALLBACKS is None:
+        from fmpy.fmi2 import (
+            calloc,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+            free,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(_dispatch_log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        _CALLBACKS = callbacks
+    return _CALLBACKS
+
+
+class FmuUnit:
+    """An FMI 2.0 co-simulation FMU driven through fmpy."""
+
+    def __init__(
+        self,
+        name: str,
+        path: Path,
+        parameters: dict[str, Any] | None = None,
+        on_log: Callable[[str, LogRecord], None] | None = None,
+    ) -> None:
+        self.name = name
+        self.path = Path(path)
+        self.description, self._md = read_description(self.path, name)
+        self.parameters = dict(parameters or {})
+        self.log: list[LogRecord] = []
+        self.warnings = 0
+        self._on_log = on_log
+        self._fmu = None
+        self._dir: str | None = None
+        self._time: float | None = None
+        self._instantiated = False
+        self._initialized = False
+        self._callbacks = None
+        self._f: dict[str, Any] = {}
+        self._worst = 0  # worst FMI status returned so far
+
+    # -- FMI status translation: the only place -------------------------------------------------
+    def _check(self, function: str, status: int) -> None:
+        if status > 1:
+            self._worst = max(self._worst, status)
+            check_status(self.name, function, status, self._time, self.log)
+
+    def _call(self, function: str, *args: Any) -> None:
+        self._check(function, self._f[function](self._fmu.component, *args))
+
+    # -- logging --------------------------------------------------------------------------------
+    def _receive_log(self, status, category, message) -> None:
+        label = STATUS_LABELS[status] if 0 <= status < len(STATUS_LABELS) else str(status)
+        record = LogRecord(
+            label,
+            category.decode("utf-8", "replace") if category else "",
+            message.decode("utf-8", "replace") if message else "",
+        )
+        self.log.append(record)
+        if status == 1:
+            self.warnings += 1
+        if self._on_log is not None:
+            self._on_log(self.name, record)
+
+    def _make_callbacks(self):
+        callbacks = _shared_callbacks()
+        self._env_key = next(_ENV_KEYS)
+        _LOG_TARGETS[self._env_key] = weakref.ref(self)
+        # A copy of the shared struct whose componentEnvironment identifies this unit.
+        from fmpy.fmi2 import fmi2CallbackFunctions
+
+        own = fmi2CallbackFunctions()
+        own.logger = callbacks.logger
+        own.allocateMemory = callbacks.allocateMemory
+        own.freeMemory = callbacks.freeMemory
+        own.componentEnvironment = c_void_p(self._env_key)
+        return own
+
+    # -- Unit interface --------------------------------------------------------------------------
+    def setup(self, start_time: float, stop_time: float) -> None:
+        """Extract, load, instantiate, apply parameters, set up the experiment, enter initialization."""
+        from fmpy.fmi2 import FMU2Slave
+
+        self._time = start_time
+        self._dir, self._fmu = load_slave(FMU2Slave, self.path, self._md, self.name, start_time)
+        self._f = self._fmu._functions
+        self._callbacks = self._make_callbacks()
+        try:
+            self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        except Exception as exc:
+            raise SimulationError(f"fmi2Instantiate failed: {exc}", unit=self.name, time=start_time) from exc
+        self._instantiated = True
+        for name, value in self.parameters.items():
+            self._set_parameter(name, value)
+        self._call("fmi2SetupExperiment", 0, 0.0, start_time, 1, stop_time)
+        self._call("fmi2EnterInitializationMode")
+
+    def _set_parameter(self, name: str, value: Any) -> None:
+        var = self.description.variables[name]
+        vr = (c_uint * 1)(var.vr)
+        try:
+            if var.type == "Real":
+                self._call("fmi2SetReal", vr, 1, (c_double * 1)(float(value)))
+            elif var.type in ("Integer", "Enumeration"):
+                self._call("fmi2SetInteger", vr, 1, (self._int_type() * 1)(int(value)))
+            elif var.type == "Boolean":
+                self._call("fmi2SetBoolean", vr, 1, (self._int_type() * 1)(1 if value else 0))
+            else:
+                from fmpy.fmi2 import fmi2String
+
+                self._call("fmi2SetString", vr, 1, (fmi2String * 1)(str(value).encode("utf-8")))
+        except UnitCallError as exc:
+            raise SimulationError(
+                f"setting parameter to {value!r} failed: {exc.reason}", self.name, name, self._time, exc.details
+            ) from None
+
+    @staticmethod
+    def _int_type():
+        from fmpy.fmi2 import fmi2Integer
+
+        return fmi2Integer
+
+    def exit_initialization(self) -> None:
+        self._call("fmi2ExitInitializationMode")
+        self._initialized = True
+
+    def prepare(self, refs: Sequence[int]) -> ValueBuffer:
+        n = len(refs)
+        buf = (c_double * max(n, 1))()
+        return ValueBuffer((c_uint * max(n, 1))(*refs), buf, np.ctypeslib.as_array(buf)[:n], n)
+
+    def get_real(self, handle: ValueBuffer) -> np.ndarray:
+        self._check("fmi2GetReal", self._f["fmi2GetReal"](self._fmu.component, handle.vrs, handle.n, handle.buf))
+        return handle.view
+
+    def set_real(self, handle: ValueBuffer, values: np.ndarray) -> None:
+        handle.view[:] = values
+        self._check("fmi2SetReal", self._f["fmi2SetReal"](self._fmu.component, handle.vrs, handle.n, handle.buf))
+
+    def step(self, t: float, h: float) -> None:
+        self._time = t
+        self._check("fmi2DoStep", self._f["fmi2DoStep"](self._fmu.component, t, h, 1))
+        self._time = t + h
+
+    # -- for the native executor (orchestration.master.native_stepper) ----------------------------------
+    def native_functions(self) -> tuple[int, int, int, int] | None:
+        """Addresses of (component, fmi2SetReal, fmi2GetReal, fmi2DoStep) while instantiated."""
+        if self._fmu is None or not self._instantiated:
+            return None
+        return (self._fmu.component, *(cast(self._f[name], c_void_p).value
+                                       for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")))
+
+    @property
+    def time(self) -> float | None:
+        """The unit's time as error messages report it: t before a step, t + h after it [s]."""
+        return self._time
+
+    @time.setter
+    def time(self, value: float) -> None:
+        self._time = value
+
+    def raise_status(self, function: str, status: int) -> None:
+        """Translate a status an FMI function of this unit returned elsewhere (raises above warning)."""
+        self._check(function, status)
+
+    def get_values(self, names: Sequence[str]) -> dict[str, Any]:
+        """Values of variables of any type by name (slow path, for parameters and checks)."""
+        out = {}
+        for name in names:
+            var = self.description.variables[name]
+            getter = {"Real": self._fmu.getReal, "Integer": self._fmu.getInteger,
+                      "Boolean": self._fmu.getBoolean, "String": self._fmu.getString}[var.type]
+            out[name] = getter([var.vr])[0]
+        return out
+
+    def terminate(self) -> None:
+        """Terminate (if initialized), free the instance and the extracted files; never raises.
+
+        FMI 2.0 rules after a failure: after fmi2Error only fmi2FreeInstance is allowed; after
+        fmi2Fatal nothing at all, so such an instance is left to the process (and its
+        library stays loaded).
+        """
+        fmu, self._fmu = self._fmu, None
+        if fmu is not None and self._worst >= 4:
+            self._instantiated = self._initialized = False
+            _LOG_TARGETS.pop(getattr(self, "_env_key", 0), None)
+            self._abandoned = fmu  # keep the library loaded: its instance was never freed
+            if self._dir is not None:
+                shutil.rmtree(self._dir, ignore_errors=True)
+                self._dir = None
+            return
+        try:
+            if fmu is not None and self._instantiated:
+                if self._initialized and self._worst < 3:
+                    try:
+                        fmu.fmi2Terminate(fmu.component)
+                    except Exception:  # a failed unit may refuse to terminate; free it anyway
+                        pass
+                fmu.fmi2FreeInstance(fmu.component)
+            if fmu is not None:
+                fmu.freeLibrary()
+        except Exception:
+            pass
+        finally:
+            self._instantiated = self._initialized = False
+            _LOG_TARGETS.pop(getattr(self, "_env_key", 0), None)
+            if self._dir is not None:
+                shutil.rmtree(self._dir, ignore_errors=True)
+                self._dir = None
+
+    @property
+    def freed(self) -> bool:
+        """True once the unit holds no FMU instance and no extracted files."""
+        return self._fmu is None and self._dir is None

@@ -1,0 +1,137 @@
+/* The master's inner loop in C: executes the program of FMI calls and value transfers that
+ * orchestration/master/algorithm.py's CouplingAlgorithm.program() describes, for a range of
+ * communication steps, with the recorder's row copy and the monitor's checks after each
+ * step. It makes exactly the FMI calls, in exactly the order, and the same floating-point
+ * operations as the Python path (compiled with -ffp-contract=off), so both give identical
+ * results; see orchestration/master/native_stepper.py.
+ *
+ * Nothing here interprets an FMI status: a status above fmi2Warning stops the loop and is
+ * handed back to Python, where FmuUnit translates it.
+ */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+typedef int (*set_real_fn)(void *, const unsigned int *, size_t, const double *);
+typedef int (*get_real_fn)(void *, const unsigned int *, size_t, double *);
+typedef int (*do_step_fn)(void *, double, double, int);
+
+enum { OP_SET = 0, OP_STEP = 1, OP_GET = 2 };
+enum { RULE_START = 0, RULE_FRESH = 1, RULE_MEAN = 2, RULE_EXTRAPOLATED = 3 };
+enum { DONE = 0, FMI_FAILED = 1, MONITOR = 2 };
+
+typedef struct {
+    int64_t kind, unit, n;      /* OP_*, index of the unit, number of values */
+    const unsigned int *vrs; /* value references (the unit's prepared handle) */
+    double *buf;             /* the handle's value buffer */
+    const int64_t *slots;       /* per value: slot in the value arrays */
+    const int64_t *rules;       /* OP_SET only: per value, RULE_* */
+} Op;
+
+typedef struct {
+    /* units */
+    int64_t n_units;
+    void *const *components;
+    const set_real_fn *set_real;
+    const get_real_fn *get_real;
+    const do_step_fn *do_step;
+    double *unit_time; /* as FmuUnit._time: t before a step, t + h after it */
+    /* one communication step */
+    int64_t n_ops;
+    const Op *ops;
+    /* exchanged values: latest, and the history at t, t - h, t - 2h */
+    int64_t n_values;
+    double *values, *now, *before, *earlier;
+    int64_t known;                 /* how many history entries are real */
+    const double *extrapolation; /* 3 x 3 coefficients, row = min(known, 3) - 1 */
+    /* time grid */
+    double start, stop, step;
+    int64_t n_steps;
+    /* recorder (n_record == 0: none) */
+    int64_t n_record;
+    const int64_t *record_slots;
+    double *record_time, *record_data;
+    /* monitor */
+    int64_t check_finite, n_limits;
+    const int64_t *limit_slots;
+    const double *limits;
+    /* result */
+    int64_t failed_op, failed_status;
+} Kernel;
+
+static double time_of(const Kernel *k, int64_t step) {
+    return step == k->n_steps ? k->stop : k->start + (double)step * k->step;
+}
+
+static int run_program(Kernel *k, double t, double h) {
+    const double *c = k->extrapolation + 3 * ((k->known < 3 ? k->known : 3) - 1);
+    for (int64_t o = 0; o < k->n_ops; ++o) {
+        const Op *op = &k->ops[o];
+        void *component = k->components[op->unit];
+        int status;
+        if (op->kind == OP_SET) {
+            for (int64_t j = 0; j < op->n; ++j) {
+                int64_t s = op->slots[j];
+                switch (op->rules[j]) {
+                case RULE_START: op->buf[j] = k->now[s]; break;
+                case RULE_FRESH: op->buf[j] = k->values[s]; break;
+                case RULE_MEAN: op->buf[j] = 0.5 * (k->now[s] + k->values[s]); break;
+                default: op->buf[j] = c[0] * k->now[s] + c[1] * k->before[s] + c[2] * k->earlier[s];
+                }
+            }
+            status = k->set_real[op->unit](component, op->vrs, (size_t)op->n, op->buf);
+        } else if (op->kind == OP_STEP) {
+            k->unit_time[op->unit] = t;
+            status = k->do_step[op->unit](component, t, h, 1);
+            if (status <= 1) k->unit_time[op->unit] = t + h;
+        } else {
+            status = k->get_real[op->unit](component, op->vrs, (size_t)op->n, op->buf);
+            if (status <= 1)
+                for (int64_t j = 0; j < op->n; ++j) k->values[op->slots[j]] = op->buf[j];
+        }
+        if (status > 1) {
+            k->failed_op = o;
+            k->failed_status = status;
+            return FMI_FAILED;
+        }
+    }
+    size_t bytes = (size_t)k->n_values * sizeof(double);
+    memcpy(k->earlier, k->before, bytes);
+    memcpy(k->before, k->now, bytes);
+    memcpy(k->now, k->values, bytes);
+    k->known += 1;
+    return DONE;
+}
+
+static int observe(Kernel *k, int64_t row, double t) {
+    if (k->record_time) {
+        double *out = k->record_data + row * k->n_record;
+        k->record_time[row] = t;
+        for (int64_t j = 0; j < k->n_record; ++j) out[j] = k->values[k->record_slots[j]];
+    }
+    if (k->check_finite)
+        for (int64_t s = 0; s < k->n_values; ++s)
+            if (!isfinite(k->values[s])) return MONITOR;
+    for (int64_t j = 0; j < k->n_limits; ++j)
+        if (fabs(k->values[k->limit_slots[j]]) > k->limits[j]) return MONITOR;
+    return DONE;
+}
+
+/* Steps first .. last - 1 (step s goes from t(s) to t(s + 1)); *done = steps finished.
+ * Returns DONE, FMI_FAILED (failed_op, failed_status set; that step is not finished) or
+ * MONITOR (the step is finished and recorded; the monitor has something to say). */
+int run_steps(Kernel *k, int64_t first, int64_t last, int64_t *done) {
+    for (int64_t s = first; s < last; ++s) {
+        double t = time_of(k, s), t_next = time_of(k, s + 1);
+        int code = run_program(k, t, t_next - t);
+        if (code != DONE) {
+            *done = s;
+            return code;
+        }
+        code = observe(k, s + 1, t_next);
+        *done = s + 1;
+        if (code != DONE) return code;
+    }
+    return DONE;
+}

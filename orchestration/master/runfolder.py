@@ -1,0 +1,196 @@
+"""Run folders: never overwritten, every file written atomically (temporary file, then rename)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import uuid
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class RunFolderExists(FileExistsError):
+    """The chosen output folder exists and is not empty (or another run has just claimed it)."""
+
+
+class RunFolderUnusable(RunFolderExists):
+    """The run folder cannot be created or written (a file as parent, read-only or missing file system).
+
+    A subclass of :class:`RunFolderExists` so every caller that reports that one as a
+    configuration error (exit 2, nothing written) reports this one the same way.
+    """
+
+
+RUN_MARKER = ".mre-cosim-run"
+"""Written first into every run folder, with O_CREAT|O_EXCL: the atomic claim of the folder
+(two runs given the same ``--out`` cannot both get it) and the probe that it is writable,
+both before anything is simulated."""
+
+
+def _claim(folder: Path, created: bool) -> None:
+    """Create the marker exclusively; on failure remove a folder this run created and raise."""
+    info = {"tool": "mre-cosim run", "pid": os.getpid(), "started": datetime.now(UTC).isoformat(),
+            "run_id": uuid.uuid4().hex}
+    marker = folder / RUN_MARKER
+    try:
+        fd = os.open(marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except FileExistsError:
+        raise RunFolderExists(
+            f"{folder} exists and is not empty (claimed by another run): choose another --out (nothing was written)"
+        ) from None
+    except OSError as exc:
+        _remove_created(folder, created)
+        raise RunFolderUnusable(f"{folder}: cannot write the run folder ({_why(exc, folder)}); "
+                                "choose another --out (nothing was written)") from None
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(info, f)
+    except OSError as exc:
+        marker.unlink(missing_ok=True)
+        _remove_created(folder, created)
+        raise RunFolderUnusable(f"{folder}: cannot write the run folder ({_why(exc, folder)}); "
+                                "choose another --out (nothing was written)") from None
+
+
+def _why(exc: OSError, path: Path) -> str:
+    """A short reason for a failed folder creation, naming a file that stands where a folder must be."""
+    for parent in (path, *path.parents):
+        if parent.exists() and not parent.is_dir():
+            return f"{parent} is a file, not a folder"
+    where = f"{exc.filename}: " if exc.filename and str(exc.filename) != str(path) else ""
+    return where + (exc.strerror or str(exc))
+
+
+def _remove_created(folder: Path, created: bool) -> None:
+    if created:
+        try:
+            folder.rmdir()  # only ever an empty folder this run made itself
+        except OSError:
+            pass
+
+
+def run_id(folder: Path) -> str | None:
+    """The id written into the claim marker of a run folder (None if unreadable)."""
+    try:
+        return json.loads((Path(folder) / RUN_MARKER).read_text())["run_id"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
+    """Create, claim and return a fresh run folder, before anything is simulated.
+
+    With ``explicit`` (``--out``), that folder is used if it does not exist or is empty;
+    otherwise ``base/<name>-<UTC timestamp>`` with a numeric suffix if taken. The folder is
+    claimed by creating :data:`RUN_MARKER` exclusively, so of two runs racing for the same
+    ``--out`` exactly one gets it and the other raises :class:`RunFolderExists`; a folder
+    that cannot be created or written raises :class:`RunFolderUnusable` naming the path.
+    """
+    if explicit is not None:
+        explicit = Path(explicit)
+        try:
+            explicit.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                explicit.mkdir()
+                created = True
+            except FileExistsError:
+                created = False
+                if not explicit.is_dir() or any(explicit.iterdir()):
+                    raise RunFolderExists(
+                        f"{explicit} exists and is not empty: choose another --out (nothing was written)"
+                    ) from None
+        except RunFolderExists:
+            raise
+        except OSError as exc:
+            raise RunFolderUnusable(f"{explicit}: cannot create the run folder ({_why(exc, explicit)}); "
+                                    "choose another --out (nothing was written)") from None
+        _claim(explicit, created)
+        return explicit
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RunFolderUnusable(f"{base}: cannot create the results folder ({_why(exc, base)}); "
+                                "set results.dir or pass --out (nothing was written)") from None
+    for k in range(1000):
+        folder = base / (f"{name}-{stamp}" if k == 0 else f"{name}-{stamp}-{k}")
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise RunFolderUnusable(f"{folder}: cannot create the run folder ({_why(exc, folder)}); "
+                                    "set results.dir or pass --out (nothing was written)") from None
+        _claim(folder, True)
+        return folder
+    raise RunFolderExists(f"no free run folder name under {base}")
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _atomic(path: Path, write) -> None:
+    """Write through a temporary file in the same folder, then rename: a file is whole or absent."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            write(f)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Write JSON atomically."""
+    _atomic(path, lambda f: json.dump(data, f, indent=2, default=str))
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write text atomically."""
+    _atomic(path, lambda f: f.write(text))
+
+
+def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray) -> None:
+    """CSV with a ``time`` column first, then one column per variable (12 significant digits)."""
+    row = ",".join(["%.12g"] * (len(names) + 1)) + "\n"
+
+    def write(f):
+        f.write(",".join(["time", *names]) + "\n")
+        block = np.column_stack([time, data]).tolist()
+        for start in range(0, len(block), 20000):
+            f.write("".join(row % tuple(r) for r in block[start : start + 20000]))
+
+    _atomic(path, write)
+
+
+def sha256(path: Path) -> str:
+    """SHA-256 of a file."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def package_versions(names: Sequence[str] = ("fmpy", "pythonfmu", "numpy", "scipy", "matplotlib", "pydantic",
+                                             "PyYAML")) -> dict[str, str]:
+    """Installed versions of the packages a run depends on."""
+    out = {}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out

@@ -1,0 +1,306 @@
+"""Scenario files: YAML parsed into typed objects, every problem reported at once.
+
+A scenario names the units (FMU path, parameters), the connections between them
+(``"building.x_0 -> isolator.x"``), the time grid, what to record and where results go.
+``extends: other.yaml`` takes another file as defaults; ``--set KEY=VALUE`` overrides
+any key (``UNIT.PARAM=VALUE`` is short for ``units.UNIT.parameters.PARAM=VALUE``).
+
+Structural checks happen here (unknown keys, wrong types, missing fields); checks that
+need the FMUs' model descriptions are in :mod:`orchestration.master.system`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.yaml_source import DataFile, Lines, apply_override, dotted, load_tree, locate
+
+_NAME = r"[A-Za-z_][A-Za-z0-9_]*"
+_VARIABLE = re.compile(rf"^\s*({_NAME})\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\s*$")
+_CONNECTION = re.compile(r"^\s*(\S+)\s*->\s*(\S+)\s*$")
+
+ParamValue = bool | int | float | str | DataFile
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+
+
+class VariableRef(_Strict):
+    """``unit.variable``."""
+
+    unit: str
+    name: str
+
+    @classmethod
+    def parse(cls, text: str) -> VariableRef:
+        m = _VARIABLE.match(text) if isinstance(text, str) else None
+        if not m:
+            raise ValueError(f"expected 'unit.variable', got {text!r}")
+        return cls(unit=m.group(1), name=m.group(2))
+
+    def __str__(self) -> str:
+        return f"{self.unit}.{self.name}"
+
+
+class Connection(_Strict):
+    """Output ``source`` feeds input ``target``. ``delayed`` connections are read only at step start."""
+
+    source: VariableRef
+    target: VariableRef
+    delayed: bool = False
+
+    def __str__(self) -> str:
+        return f"{self.source} -> {self.target}" + (" (delayed)" if self.delayed else "")
+
+
+class UnitSpec(_Strict):
+    """One co-simulation unit: its FMU file (relative to the scenario file) and parameter values."""
+
+    fmu: str
+    parameters: dict[str, ParamValue] = Field(default_factory=dict)
+
+    @field_validator("parameters", mode="before")
+    @classmethod
+    def _scalars(cls, value: Any) -> Any:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                if not isinstance(item, bool | int | float | str | DataFile):
+                    raise ValueError(f"parameter {key!r} must be a number, boolean or string, got {item!r}")
+        return value
+
+
+class SimulationSpec(_Strict):
+    """Time grid and coupling algorithm."""
+
+    step: float = Field(gt=0, description="communication step [s]")
+    stop_time: float = Field(description="[s]")
+    start_time: float = Field(0.0, description="[s]")
+    algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    inputs: Literal["step-mean", "hold"] = Field(
+        "step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
+    )
+    order: list[str] | None = None
+    executor: Literal["auto", "native", "python"] = Field(
+        "auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
+    )
+
+    @model_validator(mode="after")
+    def _grid(self) -> SimulationSpec:
+        span = self.stop_time - self.start_time
+        if span <= 0:
+            raise ValueError(f"stop_time ({self.stop_time} s) must be after start_time ({self.start_time} s)")
+        if self.step > span:
+            raise ValueError(f"step ({self.step} s) is larger than the simulated span ({span} s)")
+        n = round(span / self.step)
+        if abs(n * self.step - span) > 1e-9 * max(1.0, span):
+            raise ValueError(
+                f"the span {span} s is not a whole number of steps of {self.step} s "
+                f"({span / self.step:.6g} steps): the last step must land on stop_time"
+            )
+        return self
+
+    @property
+    def n_steps(self) -> int:
+        """Number of communication steps."""
+        return round((self.stop_time - self.start_time) / self.step)
+
+
+class ResultsSpec(_Strict):
+    """Where run folders go (relative to the working directory)."""
+
+    dir: str = "runs"
+
+
+class ReportSpec(_Strict):
+    """Roles of recorded variables for the run summary and plots (all optional)."""
+
+    base_displacement: VariableRef | None = None
+    drifts: list[VariableRef] = Field(default_factory=list)
+    floor_accelerations: list[VariableRef] = Field(default_factory=list)
+    current: VariableRef | None = None
+    isolator_force: VariableRef | None = None
+
+    @field_validator("base_displacement", "current", "isolator_force", mode="before")
+    @classmethod
+    def _one(cls, value: Any) -> Any:
+        return VariableRef.parse(value) if isinstance(value, str) else value
+
+    @field_validator("drifts", "floor_accelerations", mode="before")
+    @classmethod
+    def _many(cls, value: Any) -> Any:
+        if isinstance(value, list):
+            return [VariableRef.parse(v) if isinstance(v, str) else v for v in value]
+        return value
+
+    def variables(self) -> list[VariableRef]:
+        """Every variable the report needs."""
+        single = [self.base_displacement, self.current, self.isolator_force]
+        return [v for v in single if v is not None] + list(self.drifts) + list(self.floor_accelerations)
+
+
+class LimitsSpec(_Strict):
+    """Physical plausibility limits: a run stops when a watched variable leaves them."""
+
+    max_abs: dict[str, float] = Field(default_factory=dict)
+
+    @field_validator("max_abs")
+    @classmethod
+    def _refs(cls, value: dict[str, float]) -> dict[str, float]:
+        for key, limit in value.items():
+            VariableRef.parse(key)
+            if not limit > 0:
+                raise ValueError(f"limit for {key} must be positive, got {limit}")
+        return value
+
+
+class Scenario(_Strict):
+    """A whole co-simulation scenario, as resolved (defaults merged, overrides applied)."""
+
+    name: str
+    description: str = ""
+    units: dict[str, UnitSpec]
+    connections: list[Connection] = Field(default_factory=list)
+    simulation: SimulationSpec
+    outputs: Literal["all"] | list[VariableRef] = "all"
+    results: ResultsSpec = Field(default_factory=ResultsSpec)
+    report: ReportSpec = Field(default_factory=ReportSpec)
+    limits: LimitsSpec = Field(default_factory=LimitsSpec)
+
+    @field_validator("units")
+    @classmethod
+    def _unit_names(cls, value: dict[str, UnitSpec]) -> dict[str, UnitSpec]:
+        if not value:
+            raise ValueError("a scenario needs at least one unit")
+        for name in value:
+            if not re.fullmatch(_NAME, name):
+                raise ValueError(f"unit name {name!r} must be a plain identifier")
+        return value
+
+    @field_validator("connections", mode="before")
+    @classmethod
+    def _connections(cls, value: Any) -> Any:
+        if not isinstance(value, list):
+            return value
+        out = []
+        for item in value:
+            if isinstance(item, str):
+                m = _CONNECTION.match(item)
+                if not m:
+                    raise ValueError(f"expected 'unit.output -> unit.input', got {item!r}")
+                item = {"source": m.group(1), "target": m.group(2)}
+            if isinstance(item, dict):
+                item = dict(item)
+                for key in ("source", "target"):
+                    if isinstance(item.get(key), str):
+                        item[key] = VariableRef.parse(item[key])
+            out.append(item)
+        return out
+
+    @field_validator("outputs", mode="before")
+    @classmethod
+    def _outputs(cls, value: Any) -> Any:
+        if isinstance(value, list):
+            return [VariableRef.parse(v) if isinstance(v, str) else v for v in value]
+        return value
+
+
+class LoadedScenario:
+    """A validated scenario with where it came from (file, key lines) for later problem reports."""
+
+    def __init__(self, scenario: Scenario, path: Path, lines: Lines, raw: dict[str, Any]) -> None:
+        self.scenario = scenario
+        self.path = path
+        self.lines = lines
+        self.raw = raw
+
+    def problem(self, message: str, *key: Any) -> Problem:
+        """A problem located at a key path of the scenario."""
+        file, line = locate(self.lines, key)
+        return Problem(message, dotted(key), file or str(self.path), line)
+
+    def base_dir(self, *key: Any) -> Path:
+        """Folder that relative paths at a key are relative to: that of the file that set the key
+        (a base file reached through ``extends`` keeps its own folder); the working directory
+        for command-line overrides."""
+        file, _ = self.lines.get(tuple(key), ("", None))
+        if file.startswith("--set"):
+            return Path.cwd()
+        return Path(file).parent if file and Path(file).is_file() else self.path.parent
+
+    def fmu_path(self, unit: str) -> Path:
+        """Absolute FMU path of a unit (relative paths: see :meth:`base_dir`)."""
+        fmu = Path(self.scenario.units[unit].fmu).expanduser()
+        return fmu if fmu.is_absolute() else (self.base_dir("units", unit, "fmu") / fmu).resolve()
+
+
+def _model_at(model: type[BaseModel] | None, key: tuple[Any, ...]) -> type[BaseModel] | None:
+    """The pydantic model that holds the keys at ``key`` (through dict values, lists and optionals)."""
+    annotation: Any = model
+    for part in key:
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            field_info = annotation.model_fields.get(part) if isinstance(part, str) else None
+            if field_info is None:
+                return None
+            annotation = field_info.annotation
+            continue
+        args = [a for a in get_args(annotation) if a is not type(None)]
+        annotation = args[-1] if args else None  # dict[str, M] -> M, list[M] -> M, M | None -> M
+    args = [a for a in get_args(annotation) if a is not type(None)] if not isinstance(annotation, type) else []
+    if len(args) == 1:
+        annotation = args[0]
+    return annotation if isinstance(annotation, type) and issubclass(annotation, BaseModel) else None
+
+
+def unknown_key_message(model: type[BaseModel] | None, key: tuple[Any, ...]) -> str:
+    """'unknown key', with the closest allowed names when there are any."""
+    holder = _model_at(model, key[:-1]) if model is not None and key else None
+    if holder is None or not isinstance(key[-1], str):
+        return "unknown key"
+    names = [f.alias or n for n, f in holder.model_fields.items()]
+    close = difflib.get_close_matches(key[-1], names, n=3, cutoff=0.6)
+    return f"unknown key (did you mean {' or '.join(repr(c) for c in close)}?)" if close else "unknown key"
+
+
+def validation_problems(
+    exc: ValidationError, lines: Lines, path: Path, model: type[BaseModel] | None = None
+) -> list[Problem]:
+    """Pydantic errors as located problems (file, line, key path), in the tool's wording.
+
+    ``model``: the validated model, for "did you mean" suggestions on unknown keys.
+    """
+    problems = []
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        # Drop pydantic's internal location parts (union branches, validator names).
+        key = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.startswith("function-"))))
+        file, line = locate(lines, key)
+        message = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "extra_forbidden":
+            message = unknown_key_message(model, key)
+        elif err["type"] == "missing":
+            message = "required key is missing"
+        problems.append(Problem(message, dotted(key), file or str(path), line))
+    return problems
+
+
+def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedScenario:
+    """Read, merge, override and validate a scenario file. Raises ScenarioError with all problems."""
+    path = Path(path).resolve()
+    data, lines = load_tree(path)
+    data.setdefault("name", path.stem)
+    units = data.get("units")
+    unit_names = set(units) if isinstance(units, dict) else set()
+    for assignment in overrides:
+        apply_override(data, lines, assignment, unit_names)
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(validation_problems(exc, lines, path, Scenario)) from None
+    return LoadedScenario(scenario, path, lines, data)

@@ -1,0 +1,226 @@
+"""From a scenario to a runnable system: FMUs found (and, through a hook, built), everything checked up front.
+
+:func:`resolve` reads every FMU's model description (no binary is loaded), resolves data
+files through the data path, and checks parameters, connections, recorded variables,
+limits and loops against the descriptions. All problems are collected into one
+ScenarioError, each with the file, line and key it comes from.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from orchestration.master.algorithm import CouplingAlgorithm
+from orchestration.master.datapath import find_data_file
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.fmi_status import LogRecord
+from orchestration.master.fmu3_unit import Fmu3Unit
+from orchestration.master.fmu_file import FmuFormatError, read_description
+from orchestration.master.fmu_unit import FmuUnit
+from orchestration.master.graph import AlgebraicLoopError, Link, Port, propagation_order
+from orchestration.master.scenario import LoadedScenario, VariableRef
+from orchestration.master.unit import UnitDescription
+from orchestration.master.yaml_source import DataFile
+
+
+def _compatible(fmi_type: str, value: Any) -> bool:
+    """Can a YAML value be set to a variable of this FMI type (no silent bool/number mixing)?"""
+    if fmi_type == "Real":
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if fmi_type in ("Integer", "Enumeration"):
+        return isinstance(value, int) and not isinstance(value, bool)
+    if fmi_type == "Boolean":
+        return isinstance(value, bool)
+    return fmi_type == "String" and isinstance(value, str)
+
+
+@dataclass
+class SystemPlan:
+    """Everything needed to instantiate and run a scenario, checked."""
+
+    loaded: LoadedScenario
+    fmu_paths: dict[str, Path]
+    descriptions: dict[str, UnitDescription]
+    parameters: dict[str, dict[str, Any]]
+    links: list[Link]
+    recorded: list[Port]
+    limits: dict[Port, float]
+    data_files: dict[str, Path] = field(default_factory=dict)
+
+    def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit | Fmu3Unit]:
+        """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit."""
+        return [(Fmu3Unit if desc.fmi_version.startswith("3.") else FmuUnit)(
+            name, self.fmu_paths[name], self.parameters[name], on_log) for name, desc in self.descriptions.items()]
+
+    def create_algorithm(self, units: list[FmuUnit]) -> CouplingAlgorithm:
+        """The coupling algorithm for these units, as the scenario chose it."""
+        sim = self.loaded.scenario.simulation
+        return CouplingAlgorithm(units, self.links, self.recorded + list(self.limits), sim.algorithm, sim.order,
+                                 sim.inputs)
+
+
+@dataclass(frozen=True)
+class ResolveHooks:
+    """What an application adds to the engine's checks; the engine itself knows no FMU sources or file formats.
+
+    ``prepare_fmu(path)`` may build or refresh an FMU before its description is read and
+    returns a problem text or None; ``data_checks[kind](path)`` checks a data file named
+    with ``!kind`` and returns a problem text or None; ``default_data_dirs`` are searched
+    after ``--data-dir`` and ``MRE_COSIM_DATA``.
+    """
+
+    prepare_fmu: Callable[[Path], str | None] | None = None
+    data_checks: Mapping[str, Callable[[Path], str | None]] = field(default_factory=dict)
+    default_data_dirs: tuple[Path, ...] = ()
+
+
+def _prepare(path: Path, hooks: ResolveHooks) -> str | None:
+    if hooks.prepare_fmu is not None:
+        return hooks.prepare_fmu(path)
+    return None if path.is_file() else f"FMU file {path} does not exist"
+
+
+def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: ResolveHooks | None = None) -> SystemPlan:
+    """Check a loaded scenario against its FMUs; raises ScenarioError listing every problem."""
+    hooks = hooks or ResolveHooks()
+    sc = loaded.scenario
+    problems: list[Problem] = []
+    descriptions: dict[str, UnitDescription] = {}
+    fmu_paths: dict[str, Path] = {}
+    parameters: dict[str, dict[str, Any]] = {}
+    data_files: dict[str, Path] = {}
+
+    for name in sc.units:
+        path = loaded.fmu_path(name)
+        fmu_paths[name] = path
+        text = _prepare(path, hooks)
+        if text is not None:
+            problems.append(loaded.problem(text, "units", name, "fmu"))
+            continue
+        try:
+            descriptions[name], _ = read_description(path, name)
+        except FmuFormatError as exc:
+            problems.append(loaded.problem(str(exc), "units", name, "fmu"))
+
+    for name, spec in sc.units.items():
+        parameters[name] = {}
+        desc = descriptions.get(name)
+        for pname, value in spec.parameters.items():
+            if isinstance(value, DataFile):
+                try:
+                    found = find_data_file(value.name, data_dirs, loaded.base_dir("units", name, "parameters", pname),
+                                           hooks.default_data_dirs)
+                except FileNotFoundError as exc:
+                    problems.append(loaded.problem(str(exc), "units", name, "parameters", pname))
+                    continue
+                check = hooks.data_checks.get(value.kind)
+                text = check(found) if check is not None else None
+                if text is not None:
+                    problems.append(loaded.problem(text, "units", name, "parameters", pname))
+                    continue
+                data_files[f"{name}.{pname}"] = found
+                value = str(found)
+            if desc is None:
+                continue
+            var = desc.variables.get(pname)
+            if var is None:
+                problems.append(loaded.problem(f"{desc.model_identifier} has no variable {pname!r}",
+                                               "units", name, "parameters", pname))
+                continue
+            if var.causality not in ("parameter", "input") or var.variability == "constant":
+                problems.append(loaded.problem(
+                    f"{pname!r} is a {var.variability} {var.causality}, not a settable parameter",
+                    "units", name, "parameters", pname))
+                continue
+            if not _compatible(var.type, value):
+                unit = f" [{var.unit}]" if var.unit else ""
+                problems.append(loaded.problem(f"{pname!r} is {var.type}{unit}, got {value!r}",
+                                               "units", name, "parameters", pname))
+                continue
+            parameters[name][pname] = value
+
+    def port(ref: VariableRef, causality: str, *key: Any) -> Port | None:
+        desc = descriptions.get(ref.unit)
+        if ref.unit not in sc.units:
+            problems.append(loaded.problem(f"no unit named {ref.unit!r} (units: {', '.join(sc.units)})", *key))
+            return None
+        if desc is None:
+            return None  # the unit's own problem is reported already
+        var = desc.variables.get(ref.name)
+        if var is None:
+            problems.append(loaded.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}", *key))
+            return None
+        if var.causality != causality:
+            problems.append(loaded.problem(f"{ref} is {var.causality}, expected {causality}", *key))
+            return None
+        return (ref.unit, ref.name)
+
+    links: list[Link] = []
+    driven: dict[Port, int] = {}
+    for k, conn in enumerate(sc.connections):
+        src = port(conn.source, "output", "connections", k)
+        dst = port(conn.target, "input", "connections", k)
+        if src is None or dst is None:
+            continue
+        vs = descriptions[src[0]].variables[src[1]]
+        vd = descriptions[dst[0]].variables[dst[1]]
+        if vs.type != vd.type:
+            problems.append(loaded.problem(f"type mismatch: {conn.source} is {vs.type}, {conn.target} is {vd.type}",
+                                           "connections", k))
+            continue
+        if vs.type != "Real":
+            problems.append(loaded.problem(f"only Real connections are supported, {conn} is {vs.type}",
+                                           "connections", k))
+            continue
+        if vs.unit and vd.unit and vs.unit != vd.unit:
+            problems.append(loaded.problem(f"unit mismatch: {conn.source} is in {vs.unit}, {conn.target} in {vd.unit}",
+                                           "connections", k))
+            continue
+        if dst in driven:
+            problems.append(loaded.problem(f"{conn.target} is already driven by connections[{driven[dst]}]",
+                                           "connections", k))
+            continue
+        driven[dst] = k
+        links.append(Link(src, dst, conn.delayed))
+
+    for name, desc in descriptions.items():
+        for var in desc.inputs():
+            if (name, var.name) not in driven and var.start is None and var.name not in parameters[name]:
+                problems.append(loaded.problem(f"input {var.name!r} is not connected and has no start value",
+                                               "units", name))
+
+    recorded: list[Port] = []
+    if sc.outputs == "all":
+        recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs()]
+    else:
+        for k, ref in enumerate(sc.outputs):
+            p = port(ref, "output", "outputs", k)
+            if p is not None and p not in recorded:
+                recorded.append(p)
+    for key, refs in (("report", sc.report.variables()),):
+        for ref in refs:
+            p = port(ref, "output", key)
+            if p is not None and p not in recorded:
+                recorded.append(p)
+    limits: dict[Port, float] = {}
+    for text, limit in sc.limits.max_abs.items():
+        p = port(VariableRef.parse(text), "output", "limits", "max_abs", text)
+        if p is not None:
+            limits[p] = limit
+
+    order = sc.simulation.order
+    if order is not None and sorted(order) != sorted(sc.units):
+        problems.append(loaded.problem(f"must list every unit once: {', '.join(sc.units)}", "simulation", "order"))
+
+    if len(descriptions) == len(sc.units) and not problems:
+        try:
+            propagation_order(descriptions, links)
+        except AlgebraicLoopError as exc:
+            problems.append(loaded.problem(str(exc), "connections"))
+
+    if problems:
+        raise ScenarioError(problems)
+    return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files)

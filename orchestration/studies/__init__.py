@@ -1,0 +1,1 @@
+"""Studies built on the master: the case study, SOSM tuning, sweeps."""

@@ -1,0 +1,180 @@
+"""Study configuration (``scenarios/case_study.yaml``): records, strategies, sweep, tuning, reference.
+
+A study runs every record x strategy as a co-simulation through the master. The file is
+read with the project's YAML loader (file and line of every key) and validated with
+pydantic; every problem is reported as a :class:`~orchestration.master.errors.ScenarioError`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.scenario import validation_problems
+from orchestration.master.yaml_source import load_tree
+
+STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "on-off")
+UNCONTROLLED = "passive-off"
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SweepSpec(_Strict):
+    """Constant currents [A] tried for the best constant current (in-process, per record)."""
+
+    start: float = 0.0
+    stop: float | None = None  # None: i_max
+    step: float = 0.25
+
+    def currents(self, i_max: float) -> list[float]:
+        """The swept currents [A], from start to stop (default i_max) inclusive."""
+        stop = i_max if self.stop is None else self.stop
+        n = round((stop - self.start) / self.step)
+        return [round(self.start + k * self.step, 10) for k in range(n + 1)]
+
+    @model_validator(mode="after")
+    def _check(self) -> SweepSpec:
+        if not self.step > 0:
+            raise ValueError(f"sweep.step must be positive, got {self.step}")
+        if self.start < 0 or (self.stop is not None and self.stop < self.start):
+            raise ValueError("sweep needs 0 <= start <= stop")
+        return self
+
+
+class ObjectiveSpec(_Strict):
+    """J = w_acc a3/a3_off + w_drift d/d_off + penalty * max(0, x0/x_limit - 1) (dimensionless)."""
+
+    w_acc: float = 0.5
+    w_drift: float = 0.5
+    penalty: float = 10.0
+    x_limit: float = 0.015  # m, the isolator's device limit
+
+
+class TuningSpec(_Strict):
+    """How the SOSM gains are tuned (orchestration/studies/tuning.py); see docs/case_study.md."""
+
+    record: str = "elcentro"
+    stop_time: float | None = None  # s; None: the record scenario's own stop time
+    seed: int = 1
+    n_samples: int = 24  # seeded Latin-hypercube samples
+    max_evals: int = 80  # Nelder-Mead evaluations from the best sample
+    bounds: dict[str, tuple[float, float]] = Field(default_factory=lambda: {
+        "lam": (0.5, 50.0), "rho": (1.0, 200.0), "theta": (0.05, 20.0), "ratio": (1.05, 100.0)})
+
+    @field_validator("bounds")
+    @classmethod
+    def _bounds(cls, value: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+        if set(value) != {"lam", "rho", "theta", "ratio"}:
+            raise ValueError("tuning.bounds needs exactly lam, rho, theta, ratio")
+        for key, (lo, hi) in value.items():
+            if not 0 < lo < hi:
+                raise ValueError(f"tuning.bounds.{key} needs 0 < low < high, got {lo}, {hi}")
+        if value["ratio"][0] <= 1.0:
+            raise ValueError("tuning.bounds.ratio (zeta*theta/rho) must stay above 1 (Eq. 39)")
+        return value
+
+
+class ReferenceSpec(_Strict):
+    """Monolithic Radau reference of the passive strategies (constant currents)."""
+
+    enabled: bool = True
+    rtol: float = 1e-8
+    tolerance: float = 0.25  # largest relative peak error accepted (README, coupling error)
+
+
+class StudySpec(_Strict):
+    """A whole study, as written in the YAML file (paths relative to it)."""
+
+    name: str = "case_study"
+    description: str = ""
+    records: dict[str, str]
+    strategies: list[Literal["passive-off", "passive-on", "best-constant", "sosm", "on-off"]] = Field(
+        default_factory=lambda: list(STRATEGIES))
+    overrides: list[str] = Field(default_factory=list)
+    i_max: float = 3.0
+    paper_current_range: tuple[float, float] = (0.0, 2.5)
+    x_identified: float = 0.008  # m
+    x_limit: float = 0.015  # m
+    gains: str = "sosm_gains.yaml"
+    sweep: SweepSpec = Field(default_factory=SweepSpec)
+    objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
+    tuning: TuningSpec = Field(default_factory=TuningSpec)
+    reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
+    workers: int = 2
+    timeout_s: float | None = 1800.0  # per co-simulation process
+    output: str = "studies"
+
+    @model_validator(mode="after")
+    def _check(self) -> StudySpec:
+        if not self.records:
+            raise ValueError("a study needs at least one record")
+        if UNCONTROLLED not in self.strategies:
+            raise ValueError(f"strategies must include {UNCONTROLLED!r}: it is the uncontrolled case of the indices")
+        if len(set(self.strategies)) != len(self.strategies):
+            raise ValueError("strategies are listed twice")
+        if not (np.isfinite(self.i_max) and self.i_max > 0):
+            raise ValueError(f"i_max must be positive, got {self.i_max}")
+        if self.workers < 1:
+            raise ValueError("workers must be at least 1")
+        return self
+
+
+class LoadedStudy:
+    """A validated study with its file (paths in it are relative to that file)."""
+
+    def __init__(self, spec: StudySpec, path: Path, raw: dict[str, Any]) -> None:
+        self.spec = spec
+        self.path = path
+        self.raw = raw
+
+    def scenario_path(self, record: str) -> Path:
+        """Scenario file of a record (absolute)."""
+        p = Path(self.spec.records[record])
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    @property
+    def gains_path(self) -> Path:
+        """The SOSM gains file written by the tuning procedure (absolute)."""
+        p = Path(self.spec.gains)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+
+def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy:
+    """Read and validate a study file; ``overrides`` are ``KEY=VALUE`` (VALUE as YAML). Raises ScenarioError."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ScenarioError(f"study file {path} does not exist")
+    data, lines = load_tree(path)
+    for assignment in overrides:
+        key, sep, text = assignment.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(Problem("expected KEY=VALUE", "", f"--set {assignment}"))
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise ScenarioError(Problem(f"value is not YAML: {exc}", key, f"--set {assignment}")) from None
+        node = data
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(Problem(f"'{part}' is not a mapping", key, f"--set {assignment}"))
+        node[parts[-1]] = value
+        lines[tuple(parts)] = (f"--set {assignment}", None)
+    try:
+        spec = StudySpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(validation_problems(exc, lines, path, StudySpec)) from None
+    study = LoadedStudy(spec, path, data)
+    missing = [Problem(f"scenario file {study.scenario_path(r)} does not exist", f"records.{r}", str(path))
+               for r in spec.records if not study.scenario_path(r).is_file()]
+    if missing:
+        raise ScenarioError(missing)
+    return study
