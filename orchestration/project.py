@@ -83,8 +83,12 @@ def plan_scenario(path: Path | str, overrides: tuple[str, ...] = (), data_dirs: 
         from orchestration.interop.ssp import load_ssp
 
         return resolve_scenario(load_ssp(path, overrides), data_dirs)
-    require_kind(path, "scenario")
-    return resolve_scenario(load_scenario(path, overrides), data_dirs)
+    try:
+        loaded = load_scenario(path, overrides)
+    except ScenarioError:
+        require_kind(path, "scenario")  # a study or identification file: name the right tool instead
+        raise
+    return resolve_scenario(loaded, data_dirs)
 
 
 def run_scenario(

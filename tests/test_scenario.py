@@ -226,3 +226,20 @@ def test_algebraic_loop_is_a_scenario_error(fmu_dir, tmp_path):
         - isolator.F -> building.F"""
     found = "\n".join(resolve_problems(write(tmp_path, system_yaml(fmu_dir, connections=conns))))
     assert "connections: algebraic loop" in found and "building.a_0 -> building.ag -> building.a_0" in found
+
+
+@pytest.mark.parametrize("tool, file, hint", [
+    ("run.py", "case_study.yaml", "this is a study file, not a scenario file: use python orchestration/study.py"),
+    ("run.py", "identification.yaml", "this is an identification file, not a scenario file: "
+                                      "use python orchestration/identify.py"),
+    ("study.py", "kobe.yaml", "this is a scenario file, not a study file: use python orchestration/run.py"),
+])
+def test_the_wrong_kind_of_file_names_the_right_tool(tmp_path, tool, file, hint):
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, str(PROJECT / "orchestration" / tool), str(PROJECT / "scenarios" / file),
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and hint in proc.stderr
+    assert "unknown key" not in proc.stderr  # one line, not a wall of unknown keys
+    assert not (tmp_path / "out").exists()

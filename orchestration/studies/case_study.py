@@ -236,8 +236,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"report regenerated: {args.report / 'report.md'}")
         return 0
     try:
-        require_kind(args.study, "study")
-        study = load_study(args.study, tuple(args.overrides))
+        try:
+            study = load_study(args.study, tuple(args.overrides))
+        except ScenarioError:
+            require_kind(args.study, "study")  # a run scenario: name run.py instead
+            raise
         prepared = prepare(study)
         folder = new_run_folder(Path(study.spec.output), study.spec.name, args.out)
     except ScenarioError as exc:
