@@ -10,31 +10,95 @@ replaces only a folder this tool wrote (marker ``.mre-cosim-identification``). E
 done (identifications that did not converge are reported, with no parameters written for
 them: a finding about the method, not a failure of the tool); 1 with ``--strict`` when
 some did not converge; 2 bad configuration or input data, or an output folder it may not
-replace; 130 interrupted (nothing written).
+replace; 3 internal error (a bug; the traceback is in the log file named); 130 interrupted
+(nothing written).
+
+Conditions can be identified in parallel (``--workers N``) on the studies' engine
+(:mod:`orchestration.studies.engine`), behind :func:`process_map`, a map-like function: the
+identification itself (``components/identification``) only sees a map. Without
+``--workers`` that happens only when the FFOA work is large enough to pay for starting the
+engine (``pipeline.PARALLEL_MIN_S``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+if __name__ == "__main__":
+    # The conditions run in parallel processes, so one BLAS thread per process (set before
+    # numpy loads; the workers inherit it): more threads only oversubscribe the cores, and on
+    # a loaded machine made the joint fit's SVDs several times slower.
+    for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
+
+from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool
+
+if __name__ == "__main__":
+    quiet_interrupts()  # Ctrl-C or SIGTERM during the imports below: one line, exit 130, no traceback
 
 from components.identification.config import ConfigError, load_config
 from components.identification.generalized import GeneralizationError
-from components.identification.pipeline import run
+from components.identification.pipeline import PARALLEL_MIN_S, run
 from components.identification.report import summary_text
 from components.identification.testdata import TestDataError
+from orchestration.studies.engine import default_workers
+
+
+def process_map(func: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[Any]:
+    """``list(map(func, items))`` spread over up to ``workers`` processes of the studies' engine.
+
+    ``func`` must be a module-level function; items and results must pickle. Each item is
+    one job of :func:`orchestration.studies.engine.map_values` (a local Dask cluster, one
+    single-threaded worker process per CPU; the scheduler balances the jobs); results come
+    back in the order of the items, and a failed job raises RuntimeError with its traceback.
+    With one worker or one item, or without the engine, runs in this process.
+    """
+    items = list(items)
+    n = min(workers, len(items))
+    if n > 1:
+        try:
+            from orchestration.studies.engine import EngineUnavailable, map_values
+        except ImportError as exc:  # the engine's packages are missing
+            print(f"note: identifying in one process (no parallel engine: {exc})", file=sys.stderr)
+        else:
+            try:
+                return map_values(func, items, workers=n)
+            except EngineUnavailable as exc:
+                print(f"note: identifying in one process ({exc})", file=sys.stderr)
+    return [func(item) for item in items]
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Identify from the command line; returns the exit code (an unexpected error is exit 3 with a log)."""
+    return run_tool(_identify, argv, "identify.py",
+                    lambda: (ConfigError, TestDataError, GeneralizationError, OSError))  # OSError: unwritable --out
+
+
+def check_config_file(path: Path) -> None:
+    """ConfigError (exit 2) unless the configuration is a regular UTF-8 file of sane size and YAML structure
+    (no FIFO or device, no deep nesting or alias bombs): checked before the identification reads it."""
+    from orchestration.master.errors import ScenarioError
+    from orchestration.master.yaml_source import parse_text, read_text_file
+
+    try:
+        parse_text(read_text_file(path, "identification file"), str(path))
+    except ScenarioError as exc:
+        raise ConfigError("; ".join(str(p) for p in exc.problems)) from None
+
+
+def _identify(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(
         prog="identify.py", description="Identify the MRE isolator models (paper section 3).",
         epilog="exit codes: 0 done (non-converged identifications are reported); 1 some did not converge and "
                "--strict was given; 2 configuration or data error, or an output folder it may not replace "
-               "(nothing written); 130 interrupted (nothing written)")
+               "(nothing written); " + EPILOG_COMMON)
     parser.add_argument("config", type=Path, help="identification YAML (e.g. scenarios/identification.yaml)")
     parser.add_argument(
         "--out", type=Path, default=None, help="output folder (default: 'output' of the config)"
@@ -47,13 +111,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress bar")
     parser.add_argument("--strict", action="store_true", help="exit 1 if any identification did not converge")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="identify the conditions in N processes of the studies' engine (1 = in this "
+                             "process; default: one per CPU, but only when the FFOA work is large enough to pay "
+                             "for starting them, see docs/identification.md)")
     args = parser.parse_args(argv)
+    workers = default_workers() if args.workers is None else args.workers
+    if workers < 1:
+        parser.error("--workers must be >= 1")
+    min_parallel_s = PARALLEL_MIN_S if args.workers is None else 0.0
     # SIGTERM unwinds like Ctrl-C, so the staging folder of an unfinished run is removed
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    check_config_file(args.config)
     try:
         cfg = load_config(args.config)
         out = args.out if args.out is not None else Path(cfg["output"])
-        result = run(cfg, out, overwrite=args.overwrite, progress=not args.quiet)
+        result = run(cfg, out, overwrite=args.overwrite, progress=not args.quiet,
+                     map_fn=lambda func, items: process_map(func, items, workers), min_parallel_s=min_parallel_s)
     except (ConfigError, TestDataError, GeneralizationError, FileExistsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

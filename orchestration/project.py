@@ -24,8 +24,9 @@ from orchestration.master.scenario import LoadedScenario, load_scenario
 from orchestration.master.session import RunOutcome, run_plan
 from orchestration.master.system import ResolveHooks, SystemPlan, resolve
 from orchestration.master.yaml_source import load_tree
+from orchestration.provenance import provenance
 
-PROJECT_DIR = Path(__file__).resolve().parent.parent
+PROJECT_DIR = Path(__file__).resolve().parent.parent  # == orchestration.provenance.PROJECT_DIR
 RECORDS_DIR = PROJECT_DIR / "scenarios" / "records"
 
 
@@ -38,7 +39,8 @@ def check_record(path: Path) -> str | None:
     return None
 
 
-HOOKS = ResolveHooks(prepare_fmu=ensure_fmu, data_checks={"record": check_record}, default_data_dirs=(RECORDS_DIR,))
+HOOKS = ResolveHooks(prepare_fmu=ensure_fmu, data_checks={"record": check_record}, default_data_dirs=(RECORDS_DIR,),
+                     provenance=provenance)
 CHECK_ONLY = replace(HOOKS, prepare_fmu=None)  # the same checks, no FMU is built
 
 

@@ -3,12 +3,14 @@
 Writes a new run folder (never overwrites one): ``timeseries.csv``, ``summary.json``,
 ``manifest.json`` and PNG plots. Exit codes: 0 success, 1 simulation failure or
 interruption (partial results written and marked incomplete), 2 scenario error
-(nothing written).
+(nothing written), 3 internal error (a bug; the traceback is in the log file named),
+130 interrupted before the run started (nothing written).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 from pathlib import Path
@@ -16,19 +18,20 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.master.errors import ScenarioError
-from orchestration.master.execution import StopRequest
-from orchestration.master.runfolder import RunFolderExists
-from orchestration.master.session import RunOutcome
-from orchestration.project import run_scenario
+from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, quiet_interrupts, run_tool
+
+if __name__ == "__main__":
+    quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+EPILOG = ("exit codes: 0 success; 1 simulation failure or interruption (partial results written, marked "
+          "incomplete); 2 scenario error (nothing written); " + EPILOG_COMMON + ". Relative paths are relative "
+          "to the current folder.")
+UNIT_ERRORS_SHOWN = 5
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="run.py", description="Run a co-simulation scenario and write a run folder.",
-        epilog="exit codes: 0 success; 1 simulation failure or interruption (partial results written, marked "
-               "incomplete); 2 scenario error (nothing written). Relative paths are relative to the current folder.",
-    )
+        prog="run.py", description="Run a co-simulation scenario and write a run folder.", epilog=EPILOG)
     parser.add_argument("scenario", type=Path, help="scenario YAML file or SSP package (.ssp)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key; UNIT.PARAM=VALUE sets a unit parameter "
@@ -41,40 +44,55 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
+def unit_errors(folder: Path, limit: int = UNIT_ERRORS_SHOWN) -> list[str]:
+    """The last ``limit`` distinct error and fatal messages of the units, from the run's manifest."""
+    try:
+        messages = json.loads((folder / "manifest.json").read_text()).get("unit_messages", [])
+    except (OSError, ValueError, AttributeError):
+        return []
+    errors = [m for m in messages if isinstance(m, str) and ("] error: " in m or "] fatal: " in m)]
+    distinct = list(dict.fromkeys(reversed(errors)))[:limit]
+    return list(reversed(distinct))
+
+
+def _run(argv: list[str] | None) -> int:
     args = parse_args(argv)
+    from orchestration.master.execution import StopRequest
+    from orchestration.master.session import run_plan
+    from orchestration.project import plan_scenario
+
+    # Ctrl-C or SIGTERM while the scenario is checked (and FMUs built): nothing written, exit 130
+    plan = plan_scenario(args.scenario, tuple(args.overrides), tuple(args.data_dirs))
     stop = StopRequest()
 
-    def on_signal(signum, frame):
+    def on_signal(signum: int, frame: object) -> None:
         stop.set(f"{signal.Signals(signum).name} received")
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        outcome: RunOutcome = run_scenario(
-            args.scenario,
-            overrides=tuple(args.overrides),
-            out=args.out,
-            data_dirs=tuple(args.data_dirs),
-            plots=not args.no_plots,
-            progress=not args.quiet,
-            stop=stop,
-        )
-    except ScenarioError as exc:
-        print(exc.report(), file=sys.stderr)
-        return 2
-    except RunFolderExists as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        outcome = run_plan(plan, args.out, not args.no_plots, not args.quiet, stop)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        cleanup = getattr(plan.loaded, "cleanup", None)  # an SSP package's extracted files
+        if cleanup is not None:
+            cleanup()
     warnings = sum(outcome.summary.get("unit_warnings", {}).values())
     if outcome.result.complete:
         print(f"run complete: {outcome.folder} ({warnings} unit warning{'s' if warnings != 1 else ''})")
-        return 0
+        return EXIT_OK
     print(f"run {outcome.result.status}: {outcome.result.error}", file=sys.stderr)
+    said = str(outcome.result.error)
+    errors = [m for m in unit_errors(outcome.folder) if m.split(": ", 1)[-1] not in said]
+    if errors and outcome.result.status == "failed":
+        print("the units said:", *(f"  {m}" for m in errors), sep="\n", file=sys.stderr)
     print(f"partial results (marked incomplete): {outcome.folder}", file=sys.stderr)
-    return 1
+    return EXIT_FAILED
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run a scenario from the command line; returns the exit code."""
+    return run_tool(_run, argv, "run.py")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 writes a scenario as a package; ``python orchestration/ssp.py check kobe.ssp`` validates one
 and checks it against its FMUs. ``run.py`` runs a package like a scenario file.
 
-Exit codes: 0 success, 2 scenario or package error, or an existing destination (nothing written).
+Exit codes: 0 success, 2 scenario or package error, an existing destination, or one that
+cannot be written (nothing written), 3 internal error (a bug; the traceback is in the log
+file named), 130 interrupted (nothing written).
 """
 
 from __future__ import annotations
@@ -16,12 +18,13 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.interop.ssp import export_ssp, load_ssp
-from orchestration.master.errors import ScenarioError
-from orchestration.master.system import resolve
-from orchestration.project import plan_scenario
+from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, quiet_interrupts, run_tool
 
-EXIT_CODES = "exit codes: 0 success; 2 scenario or package error, or the destination exists (nothing written)"
+if __name__ == "__main__":
+    quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+EXIT_CODES = ("exit codes: 0 success; 2 scenario or package error, or the destination exists or cannot be written "
+              "(nothing written); " + EPILOG_COMMON)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -41,32 +44,48 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
+def _export(args: argparse.Namespace) -> None:
+    from orchestration.interop.ssp import export_ssp
+    from orchestration.project import plan_scenario
+
+    dest: Path = args.dest
+    if dest.is_dir():
+        raise UsageError(f"{dest} is a folder; give the .ssp file to write")
+    if (dest.exists() or dest.is_symlink()) and not args.force:
+        raise UsageError(f"{dest} exists; use --force to replace it")
+    if dest.exists() and not dest.is_file():
+        raise UsageError(f"{dest} is not a regular file; refusing to replace it")
+    plan = plan_scenario(args.scenario, tuple(args.overrides), tuple(args.data_dirs))
     try:
-        if args.command == "export":
-            dest: Path = args.dest
-            if dest.is_dir():
-                print(f"error: {dest} is a folder; give the .ssp file to write", file=sys.stderr)
-                return 2
-            if dest.exists() and not args.force:
-                print(f"error: {dest} exists; use --force to replace it", file=sys.stderr)
-                return 2
-            plan = plan_scenario(args.scenario, tuple(args.overrides), tuple(args.data_dirs))
-            print(export_ssp(plan, dest))
-        else:
-            loaded = load_ssp(args.package)
-            try:
-                plan = resolve(loaded)
-                sc = loaded.scenario
-                print(f"{args.package}: {len(plan.descriptions)} units, {len(plan.links)} connections, "
-                      f"{sc.simulation.n_steps} steps of {sc.simulation.step} s ({sc.simulation.algorithm})")
-            finally:
-                loaded.cleanup()
-    except ScenarioError as exc:
-        print(exc.report(), file=sys.stderr)
-        return 2
-    return 0
+        print(export_ssp(plan, dest))
+    except OSError as exc:  # the package is written to a temporary name first: nothing was written
+        where = exc.filename or dest
+        raise UsageError(f"cannot write {dest} ({where}: {exc.strerror or exc}); nothing was written") from None
+
+
+def _check(args: argparse.Namespace) -> None:
+    from orchestration.interop.ssp import load_ssp
+    from orchestration.master.system import resolve
+
+    loaded = load_ssp(args.package)
+    try:
+        plan = resolve(loaded)
+        sc = loaded.scenario
+        print(f"{args.package}: {len(plan.descriptions)} units, {len(plan.links)} connections, "
+              f"{sc.simulation.n_steps} steps of {sc.simulation.step} s ({sc.simulation.algorithm})")
+    finally:
+        loaded.cleanup()
+
+
+def _ssp(argv: list[str] | None) -> int:
+    args = parse_args(argv)
+    (_export if args.command == "export" else _check)(args)
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Export or check an SSP package from the command line; returns the exit code."""
+    return run_tool(_ssp, argv, "ssp.py")
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 Records x strategies, each a co-simulation through the master; see
 :mod:`orchestration.studies.case_study` for the study folder it writes. Exit codes: 0
 every job succeeded; 1 some jobs failed or the study was interrupted (the report lists
-them); 2 configuration error (nothing written).
+them); 2 configuration error (nothing written); 3 internal error (a bug; the traceback is
+in the log file named); 130 interrupted before the study started (nothing written).
 """
 
 from __future__ import annotations
@@ -14,7 +15,31 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.studies.case_study import main
+from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool, with_epilog
+
+if __name__ == "__main__":
+    quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+EPILOG = ("exit codes: 0 every job succeeded; 1 some jobs failed or the study was interrupted (the report lists "
+          "them); 2 configuration error (nothing written); " + EPILOG_COMMON)
+
+
+def _study(argv: list[str] | None) -> int:
+    from orchestration.studies.case_study import main as study_main
+
+    return with_epilog(study_main, argv, EPILOG)
+
+
+def _errors() -> tuple[type[BaseException], ...]:
+    from orchestration.studies.tuning import NotMonolithic
+
+    return (NotMonolithic,)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run a case study from the command line; returns the exit code."""
+    return run_tool(_study, argv, "study.py", _errors)
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -2,7 +2,8 @@
 
 Writes the study's gains file (``scenarios/sosm_gains.yaml``); see
 :mod:`orchestration.studies.tuning`. Exit codes: 0 written; 2 configuration error or the
-gains file exists without ``--force`` (nothing written).
+gains file exists without ``--force`` (nothing written); 3 internal error (a bug; the
+traceback is in the log file named); 130 interrupted (nothing written).
 """
 
 from __future__ import annotations
@@ -13,7 +14,31 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.studies.tuning import main
+from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool, with_epilog
+
+if __name__ == "__main__":
+    quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+EPILOG = ("exit codes: 0 gains file written; 2 configuration error, or the gains file exists without --force "
+          "(nothing written); " + EPILOG_COMMON)
+
+
+def _tune(argv: list[str] | None) -> int:
+    from orchestration.studies.tuning import main as tune_main
+
+    return with_epilog(tune_main, argv, EPILOG)
+
+
+def _errors() -> tuple[type[BaseException], ...]:
+    from orchestration.studies.tuning import NotMonolithic
+
+    return NotMonolithic, OSError  # the gains file is written atomically: a failed write leaves nothing
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Tune the gains from the command line; returns the exit code."""
+    return run_tool(_tune, argv, "tune.py", _errors)
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -14,10 +16,14 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "components" / "shells"))  # the shell itself, by file name
 sys.path.insert(0, str(ROOT / "components" / "physics"))  # the FMU shell imports its core by plain name
 
+from components.identification import bouc_wen_native as native  # noqa: E402
 from components.physics.bouc_wen_core import (  # noqa: E402
     SYNTHETIC_DEFAULT,
     BoucWenParams,
     bouc_wen_states,
+    envelope,
+    envelope_rate,
+    substeps,
 )
 
 A_MM, F_HZ, FS = 8.0, 4.0, 256.0
@@ -71,6 +77,98 @@ def test_state_stays_inside_envelope_and_batch_equals_loop():
         single = bouc_wen_states(x, beta[k], gamma[k], 1.0, n[k], dx_max=0.1)
         # the batch takes the largest sub-step count of the batch, so agree to integrator accuracy
         assert np.max(np.abs(single - y[k])) < 5e-3 * envelope[k]
+
+
+# ------------------------------------------------ population kernel (identification, bouc_wen_native)
+
+# FFOA settings (components/identification/models.py) and the joint fit's (bouc_wen_joint.py)
+SETTINGS = [(0.2, 2.0, 4), (0.1, np.inf, 64)]
+
+
+def _population(size: int = 50, seed: int = 1):
+    """Realistic parameter sets in mm units: beta, gamma 0.05-3 /mm, n 0.5-3 (FFOA's range near its optimum)."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(0.05, 3.0, size), rng.uniform(0.05, 3.0, size), rng.uniform(0.5, 3.0, size)
+
+
+def _paths():
+    for f, a in ((1.0, 2.0), (2.0, 4.0), (4.0, 8.0)):
+        t = np.arange(0, 2 / f, 1 / FS)  # warm-up cycle + fit cycle, as in identification
+        yield a * np.sin(2 * np.pi * f * t)
+
+
+@pytest.fixture(params=list(native.VARIANTS))
+def build(request) -> str:
+    if native.kernel(request.param) is None:
+        pytest.skip(f"C build {request.param} not available: {native.unavailable_reason(request.param)}")
+    return request.param
+
+
+def test_a_c_build_compiles_where_there_is_a_compiler():
+    if shutil.which(os.environ.get("CC", "cc")) is None:
+        pytest.skip("no C compiler: identification uses the numpy path")
+    assert native.kernel("c") is not None, native.unavailable_reason("c")
+    assert native.backend() in native.VARIANTS
+
+
+def test_substep_counts_follow_the_scalar_rule():
+    adx = np.concatenate([[0.0, 1e-9, 0.05, 0.2, 0.2000001, 0.79, 3.0], np.random.default_rng(0).uniform(0, 1, 200)])
+    for lam_max in (0.0, 1.0, 7.3, 1e6, np.inf):
+        for dx_max, lam_dx_max, cap in [*SETTINGS, (0.02, 0.5, 64)]:
+            expected = [substeps(a, lam_max, dx_max, lam_dx_max, cap) for a in adx]
+            got = native.substep_counts(adx, lam_max, dx_max, lam_dx_max, cap)
+            assert got.tolist() == expected, (lam_max, dx_max, lam_dx_max, cap)
+
+
+def test_numpy_path_is_the_core_integrator_bit_for_bit():
+    """The fallback does exactly what bouc_wen_core.bouc_wen_states does (same calls, same order)."""
+    beta, gamma, n = _population(12)
+    for x in _paths():
+        paths = np.stack([x, 1.01 * x, x])  # repeats with different histories: one batch
+        for dx_max, lam_dx_max, cap in SETTINGS:
+            ref = bouc_wen_states(paths, beta[:, None], gamma[:, None], 1.0, n[:, None], dx_max,
+                                  lam_dx_max=lam_dx_max, cap=cap)
+            got = native.path_states(paths, beta, gamma, 1.0, n, dx_max, lam_dx_max, cap, use="numpy")
+            np.testing.assert_array_equal(got, ref)
+            # one set is a batch of one (array pow/expm1, not the core's scalar ones of the FMU path)
+            one = native.path_states(x, beta[3], gamma[3], 1.0, n[3], dx_max, lam_dx_max, cap, use="numpy")
+            np.testing.assert_array_equal(one, bouc_wen_states(x, beta[3:4], gamma[3:4], 1.0, n[3:4], dx_max,
+                                                               lam_dx_max=lam_dx_max, cap=cap)[0])
+
+
+def test_c_kernel_equals_the_numpy_path(build):
+    """Same scheme, same operations in the same order (-ffp-contract=off). Only pow and expm1
+    may differ in the last bits (numpy uses its own SIMD versions on some CPUs, the SIMD build
+    glibc's libmvec). The integration is contractive for these parameters, so the difference
+    stays at rounding level: measured <= 5e-15 of the envelope; asserted 1e-12. (For extreme
+    exponents, n of tens, the scheme amplifies such differences: one FFOA record with
+    n ~ 60 differed by 1e-4; see docs/identification.md.)"""
+    beta, gamma, n = _population()
+    for x in _paths():
+        paths = np.stack([x, 1.01 * x])
+        for settings in SETTINGS:
+            ref = native.path_states(paths, beta, gamma, 1.0, n, *settings, use="numpy")
+            got = native.path_states(paths, beta, gamma, 1.0, n, *settings, use=build)
+            err = np.max(np.abs(got - ref), axis=(1, 2)) / envelope(beta, gamma, 1.0, n)
+            assert np.max(err) < 1e-12, np.max(err)
+
+
+@pytest.mark.parametrize("use", ["numpy", "c", "c-simd"])
+def test_population_evaluation_equals_per_fly_evaluation(use):
+    """A fly's state does not depend on the other flies beyond the shared sub-step count: alone,
+    with the population's Lam, it is bit for bit its row of the population (every lane does the
+    same operations; C batches are padded to whole SIMD vectors)."""
+    if use != "numpy" and native.kernel(use) is None:
+        pytest.skip(f"C build {use} not available: {native.unavailable_reason(use)}")
+    beta, gamma, n = _population()
+    lam = envelope_rate(beta, gamma, 1.0, n)
+    for x in _paths():
+        for settings in SETTINGS:
+            population = native.path_states(x, beta, gamma, 1.0, n, *settings, use=use)
+            assert population.shape == (beta.size, x.size)
+            for i in range(beta.size):
+                alone = native.path_states(x, beta[i], gamma[i], 1.0, n[i], *settings, use=use, lam_max=lam)
+                np.testing.assert_array_equal(alone, population[i])
 
 
 def test_paper_unit_conversion_round_trip():

@@ -259,3 +259,39 @@ def test_clearly_negative_parameter_is_refused():
     assert problems == ["k0(0 A) = -0.05 < 0"]
     tiny_but_real = {**TABLE2_PAPER_UNITS, "k0_0": 12.5, "k0_1": -1e-6}  # 1e-6 / 37.5 >> round-off
     assert physical_problems(GeneralizedFit("hyperbolic", {}, {}, tiny_but_real), 3.0) == ["k0(0 A) = -1e-06 < 0"]
+
+
+# ----------------------------------------------------------------------------- 5. run folder names and paths
+
+
+@pytest.mark.parametrize("name", ["../escape", "a/b", ".hidden", "", "a\\b"])
+def test_a_run_name_cannot_leave_the_results_folder(tmp_path, name):
+    with pytest.raises(RunFolderUnusable, match="plain name"):
+        new_run_folder(tmp_path / "runs", name)
+    assert not (tmp_path / "runs").exists() and sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_refused_out_leaves_no_folder_it_created(tmp_path):
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "x").write_text("x")
+    with pytest.raises(RunFolderExists):
+        new_run_folder(tmp_path, "x", tmp_path / "taken")
+    with pytest.raises(RunFolderUnusable, match="is a file, not a folder"):
+        new_run_folder(tmp_path, "x", tmp_path / "taken" / "x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+    assert [p.name for p in (tmp_path / "taken").iterdir()] == ["x"]
+
+
+def test_timeseries_is_written_block_by_block_with_the_same_text(tmp_path):
+    import numpy as np
+
+    from orchestration.master.recorder import write_timeseries
+
+    time = np.arange(45_001) * 1e-3
+    data = np.column_stack([np.sin(time), np.cos(time)])
+    write_timeseries(tmp_path / "t.csv", time, ["a.x", "b.y"], data)
+    lines = (tmp_path / "t.csv").read_text().splitlines()
+    assert lines[0] == "time,a.x,b.y" and len(lines) == 45_002
+    assert lines[40_001] == f"{time[40_000]:.12g},{data[40_000, 0]:.12g},{data[40_000, 1]:.12g}"
+    # every row as Python's own '%.12g' formats it (the compiled formatter must agree to the byte)
+    assert lines[1:] == [f"{t:.12g},{a:.12g},{b:.12g}" for t, (a, b) in zip(time, data, strict=True)]

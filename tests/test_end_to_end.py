@@ -156,3 +156,19 @@ def test_swapping_in_the_bouc_wen_isolator(tmp_path):
     assert np.max(np.abs(F)) > 0 and np.max(np.abs(x)) > 0
     # a restoring force: it opposes the displacement over most of the run
     assert np.mean(np.sign(F[x != 0]) == np.sign(x[x != 0])) > 0.5
+
+
+def test_the_run_folder_csv_is_the_recorded_data_formatted_exactly(tmp_path):
+    """timeseries.csv holds every recorded value as '%.12g' formats it, however the run folder writes
+    it; the recorder's own (compiled) writer gives the same bytes."""
+    outcome = run_scenario(PROJECT / "scenarios" / "kobe.yaml", ("simulation.stop_time=3",), out=tmp_path / "run",
+                           plots=False)
+    assert outcome.result.complete
+    rec = outcome.recorder
+    written = (outcome.folder / "timeseries.csv").read_bytes()
+    rows = np.column_stack([rec.times, rec.data[: rec.count]]).tolist()
+    line = ",".join(["%.12g"] * (len(rec.names) + 1)) + "\n"
+    expected = ",".join(["time", *rec.names]) + "\n" + "".join(line % tuple(r) for r in rows)
+    assert written == expected.encode()
+    rec.write_csv(tmp_path / "again.csv")
+    assert (tmp_path / "again.csv").read_bytes() == written

@@ -306,3 +306,59 @@ def test_controller_rejects_an_unknown_mode(fmu_dir, capfd):
 def test_building_rejects_a_zero_mass(fmu_dir, capfd):
     _fails_at_first_step(Driven(fmu_dir / "ShearBuilding.fmu", "b", {"m_2": 0.0}))
     assert "masses must be positive" in capfd.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["ShearBuilding", "SosmCurrentController", "MreIsolator"])
+def test_fast_exchange_paths_equal_the_generic_ones(fmu_dir, name):
+    """The shells' fast set/get paths (the value references the master exchanges every step) give
+    what pythonfmu's per-variable paths give: inputs set together or one by one, in any order;
+    outputs read together, in reverse, in subsets or one at a time."""
+    a, b = Driven(fmu_dir / f"{name}.fmu", "a"), Driven(fmu_dir / f"{name}.fmu", "b")
+    inputs = [v.name for v in a.md.modelVariables if v.causality == "input"]
+    outputs = a.outputs()
+    rng = np.random.default_rng(15)
+    try:
+        for k in range(60):
+            values = {n: float(rng.normal(0, 1e-2)) for n in inputs}
+            a.set(**values)  # declared order: the fast path
+            for n in reversed(inputs):  # one at a time, reversed: the generic path
+                b.set(**{n: values[n]})
+            all_a = a.get(*outputs)
+            assert all_a == b.get(*outputs)
+            assert a.get(*reversed(outputs)) == all_a[::-1]
+            assert [b.get(n)[0] for n in outputs] == all_a
+            subset = sorted(rng.choice(len(outputs), size=max(1, len(outputs) // 3), replace=False), reverse=True)
+            assert a.get(*(outputs[j] for j in subset)) == [all_a[j] for j in subset]
+            for unit in (a, b):
+                unit.step(k * 1e-3, 1e-3)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_scalar_fast_paths_of_the_cores_give_the_same_numbers():
+    """force_law is isolator_force with the coefficients bound; the building's products (ndarray.dot
+    into reused buffers) equal the matrix formulation with @: bit for bit, overflow included."""
+    from components.physics.mre_isolator_core import force_law
+
+    rng = np.random.default_rng(16)
+    coeffs = TABLE2
+    for F0, n in ((0.0, 2), (0.7, 1), (-1.5, 3)):
+        law = force_law(coeffs, F0, n)
+        for x, v, i in zip(rng.normal(0, 0.01, 3000), rng.normal(0, 0.1, 3000), rng.uniform(-0.5, 3.5, 3000),
+                           strict=True):
+            assert law(x, v, i) == isolator_force(x, v, i, coeffs, F0, n)
+        assert law(10.0, 0.0, 3.0) == isolator_force(10.0, 0.0, 3.0, coeffs, F0, n) == math.inf  # sinh overflows
+        assert law(-10.0, 0.0, 3.0) == -math.inf
+    for params in (BuildingParams.dyke(), BuildingParams.uniform(10)):
+        bld = ShearBuilding(params)
+        n = 2 * bld.n_levels
+        rows = bld._output_matrix()
+        for _ in range(500):
+            ag, F, h = rng.normal(0, 3), rng.normal(0, 300), float(rng.choice([1e-3, 5e-4, 2e-3]))
+            z = np.concatenate([bld.q, [ag, F]])
+            assert np.array_equal(bld.output_vector(ag, F), rows @ z)
+            assert np.array_equal(bld.relative_acceleration(ag, F), np.hstack([bld.A[n // 2:], bld.B[n // 2:]]) @ z)
+            expected = np.hstack(bld.discretization(h)) @ z
+            bld.step(ag, F, h)
+            assert np.array_equal(bld.q, expected)

@@ -96,3 +96,31 @@ def test_shipped_records_match_their_sources(name):
     assert np.diff(rec.time) == pytest.approx(np.full(npts - 1, dt), abs=1e-9)
     assert np.max(np.abs(rec.accel_g)) == pytest.approx(pga, abs=5e-5)
     assert re.match(r"^# record:", path.read_text().splitlines()[0])
+
+
+@pytest.mark.parametrize(("value", "message"), [
+    ("1_0", "not a number"), ("0x10", "not a number"), ("inf", "non-finite"), ("1e400", "non-finite")])
+def test_only_plain_decimal_numbers_are_read(tmp_path, value, message):
+    with pytest.raises(RecordError, match=rf"r\.csv:2: {message}"):
+        read_record(write(tmp_path, "r.csv", f"0,0\n0.02,{value}\n"))
+
+
+def test_plain_decimals_in_every_spelling_are_read(tmp_path):
+    rec = read_record(write(tmp_path, "r.csv", "0,0\n.02,+1.5e-3\n0.04,-2.\n"))
+    assert rec.time.tolist() == [0.0, 0.02, 0.04] and rec.accel_g.tolist() == [0.0, 0.0015, -2.0]
+
+
+@pytest.mark.parametrize(("header", "message"), [
+    ("NPTS= 3, DT= 1e308", "not finite and increasing"), ("NPTS= 3, DT= 1.2.3", "DT is not a number")])
+def test_at2_time_step_must_give_finite_times(tmp_path, header, message):
+    with pytest.raises(RecordError, match=message):
+        read_record(write(tmp_path, "r.at2", f"a\nb\nc\n{header}\n0.1 0.2 0.3\n"))
+
+
+def test_special_files_are_not_read(tmp_path):
+    import os
+
+    os.mkfifo(tmp_path / "fifo.csv")
+    for path in (tmp_path / "fifo.csv", Path("/dev/zero"), tmp_path):
+        with pytest.raises(RecordError, match="not a regular file"):
+            read_record(path)

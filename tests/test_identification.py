@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from components.identification.bouc_wen_joint import fit_bouc_wen_joint  # noqa: E402
+from components.identification.bouc_wen_native import path_states  # noqa: E402
 from components.identification.config import ConfigError, validate  # noqa: E402
 from components.identification.ffoa import FFOASettings, candidates, ffoa_minimize  # noqa: E402
 from components.identification.generalized import (  # noqa: E402
@@ -31,12 +32,22 @@ from components.identification.identifiers import (  # noqa: E402
     identify_hyperbolic_ffoa,
     identify_structured,
 )
-from components.identification.models import fit_data, hyperbolic_objective  # noqa: E402
+from components.identification.models import (  # noqa: E402
+    BW_CAP,
+    BW_DX_MAX_MM,
+    BW_LAM_DX_MAX,
+    bouc_wen_objective,
+    bouc_wen_window_states,
+    fit_data,
+    hyperbolic_objective,
+)
 from components.identification.paper_tables import TABLE1, TEST_MATRIX  # noqa: E402
+from components.identification.pipeline import identify_all  # noqa: E402
 from components.identification.testdata import (  # noqa: E402
     NoiseModel,
     TestDataError,
     generate_synthetic,
+    hyperbolic_force_mm,
     read_csv,
     write_csv,
 )
@@ -44,6 +55,8 @@ from components.physics.bouc_wen_core import (  # noqa: E402
     SYNTHETIC_DEFAULT,
     SYNTHETIC_DEFAULT_PAPER_UNITS,
     BoucWenCurrentModel,
+    bouc_wen_states,
+    envelope_rate,
 )
 from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS, GeneralizedCoefficients  # noqa: E402
 
@@ -232,6 +245,98 @@ def test_ffoa_with_paper_settings_reaches_the_noise_floor(synthetic_fits):
         assert res.rms >= s.rms * (1 - 1e-9)  # FFOA cannot beat the LS optimum
         assert res.rms / d.noise_rms < 1.15, cond
         assert len(res.history) == 300 and res.path.shape == (301, 4, 2)
+
+
+def _flies(columns: dict[str, tuple[float, float]], size: int = 50, seed: int = 2) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(lo, hi, size) for lo, hi in columns.values()])
+
+
+def test_hyperbolic_population_objective_equals_per_fly_and_the_direct_sum(synthetic_fits):
+    """The population at once equals each fly alone bit for bit (elementwise model, one row
+    reduction per fly). Against the direct RMS over all repeats, the objective of repeats
+    that share their path sums R (f - mean F)^2 + spread instead: rounding only (measured
+    <= 1e-15 relative; asserted 1e-13)."""
+    d = synthetic_fits[(2.0, 4.0, 2.0)]
+    assert d.shared_path() and len(d.x_hist) == 5
+    S = _flies({"c0": (0.1, 1.5), "k0": (1.0, 30.0), "alpha": (1.0, 40.0), "beta": (0.01, 1.0)})
+    objective = hyperbolic_objective(d)
+    population = objective(S)
+    for i in range(len(S)):
+        assert objective(S[i : i + 1])[0] == population[i]
+    direct = np.sqrt(np.mean((d.F - hyperbolic_force_mm(d.x, d.v, *(S[:, j, None] for j in range(4)), d.F0)) ** 2,
+                             axis=-1))
+    np.testing.assert_allclose(population, direct, rtol=1e-13, atol=0)
+
+
+def test_bouc_wen_population_objective_equals_per_fly_and_todays_objective(synthetic_fits):
+    """One pass over the samples for all flies (C kernel) gives what each fly gives alone with
+    the population's sub-step count, and what the objective gave before (numpy core
+    integrator on all five repeats, direct RMS): rounding only, since the kernel's pow and
+    expm1 may differ from numpy's in the last bit (measured <= 1e-15 relative; asserted 1e-12)."""
+    d = synthetic_fits[(2.0, 4.0, 2.0)]
+    S = _flies({"k": (5.0, 30.0), "c": (0.1, 1.5), "alpha": (5.0, 60.0), "beta": (0.05, 3.0),
+                "gamma": (0.05, 3.0), "n": (0.5, 3.0)})
+    population = bouc_wen_objective(d)(S)
+    assert population.shape == (len(S),)
+    np.testing.assert_allclose(bouc_wen_objective(d, use="numpy")(S), population, rtol=1e-12, atol=0)
+    k, c, alpha, beta, gamma, n = (S[:, j, None] for j in range(6))
+    y = bouc_wen_states(np.stack(d.x_hist), beta, gamma, 1.0, n, BW_DX_MAX_MM, lam_dx_max=BW_LAM_DX_MAX, cap=BW_CAP)
+    y = y[..., d.start[0] :].reshape(len(S), -1)  # the fit windows of the five repeats, concatenated
+    before = np.sqrt(np.mean((d.F - (k * d.x + c * d.v + alpha * y + d.F0)) ** 2, axis=-1))
+    np.testing.assert_allclose(population, before, rtol=1e-12, atol=0)
+    lam = envelope_rate(S[:, 3], S[:, 4], 1.0, S[:, 5])
+    for i in range(len(S)):
+        alone = np.concatenate([
+            path_states(x, S[i, 3], S[i, 4], 1.0, S[i, 5], BW_DX_MAX_MM, BW_LAM_DX_MAX, BW_CAP, lam_max=lam)[s:]
+            for x, s in zip(d.x_hist, d.start, strict=True)
+        ])
+        rms_alone = np.sqrt(np.mean((d.F - (S[i, 0] * d.x + S[i, 1] * d.v + S[i, 2] * alone + d.F0)) ** 2))
+        assert rms_alone == pytest.approx(population[i], rel=1e-13, abs=0)
+
+
+def test_repeats_sharing_a_path_are_integrated_once_with_the_same_numbers(synthetic_fits):
+    d = synthetic_fits[(1.0, 8.0, 3.0)]
+    beta, gamma, n = np.array([0.3, 1.2]), np.array([0.8, 0.1]), np.array([1.0, 2.5])
+    once = bouc_wen_window_states(d, beta, gamma, n, use="numpy")
+    every = bouc_wen_states(np.stack(d.x_hist), beta[:, None], gamma[:, None], 1.0, n[:, None], BW_DX_MAX_MM,
+                            lam_dx_max=BW_LAM_DX_MAX, cap=BW_CAP)[..., d.start[0] :].reshape(2, -1)
+    np.testing.assert_array_equal(once, every)
+    # a repeat with another path (displacement noise) is integrated on its own, in the same batch
+    noisy = fit_data(generate_synthetic(3, NoiseModel(force_rel=0.02, displacement_mm=0.01),
+                                        conditions=[(1.0, 8.0, 3.0)], repeats=3), 1, 1)
+    assert not noisy.shared_path()
+    states = bouc_wen_window_states(noisy, beta, gamma, n)
+    assert states.shape == (2, noisy.F.size) and np.all(np.isfinite(states))
+
+
+def test_conditions_in_parallel_processes_give_the_same_identifications(synthetic_fits):
+    """identify_all through the CLI's process map (two spawned workers of the studies' runner)
+    equals the in-process run: FFOA streams are seeded per condition and identifier."""
+    from orchestration.identify import process_map
+
+    conds = [(1.0, 2.0, 1.0), (2.0, 8.0, 0.0), (4.0, 4.0, 3.0)]
+    data = {c: synthetic_fits[c] for c in conds}
+    cfg = validate({"ffoa": {"n_pop": 20, "n_iter": 15}})
+    serial = identify_all(data, cfg, progress=False)
+    used = []
+
+    def spread(f, items):
+        used.append(len(items))
+        return process_map(f, items, 2)
+
+    parallel = identify_all(data, cfg, progress=False, map_fn=spread, min_parallel_s=0.0)
+    assert used == [3]
+    assert identify_all(data, cfg, progress=False, map_fn=spread) and used == [3]  # too little work to spread
+    assert list(parallel) == list(serial) == list(cfg["identifiers"])
+    for name, per in serial.items():
+        assert list(parallel[name]) == conds
+        for c, res in per.items():
+            other = parallel[name][c]
+            assert other.params == res.params and other.rms == res.rms and other.converged == res.converged
+            if res.history is not None:
+                np.testing.assert_array_equal(other.history, res.history)
+                np.testing.assert_array_equal(other.path, res.path)
 
 
 def test_non_converged_identification_is_flagged():

@@ -80,3 +80,68 @@ def test_without_a_c_compiler_the_run_still_completes_in_python(tmp_path, monkey
     assert outcome.result.complete and outcome.result.executor == "python"
     assert "no C compiler" in outcome.result.executor_note
     assert not list((tmp_path / "cache").glob("*.so"))  # no half-written library left behind
+
+
+def test_the_step_program_reads_no_output_it_overwrites_unread():
+    """Kobe, Gauss-Seidel: 14 FMI calls per step. The isolator's force is read once (by the
+    propagation, with the end-of-step inputs), not also right after its step; the building's
+    accelerations likewise. Every value a get writes is read before the next write."""
+    plan = plan_scenario(KOBE, ())
+    algorithm = plan.create_algorithm(plan.create_units())
+    program = algorithm.program()
+    assert len(program) == 14
+    gets = [(op.unit.name, len(op.slots)) for op in program if op.kind == "get"]
+    assert gets.count(("isolator", 1)) == 1
+    written: dict[int, int] = {}
+    for k, op in enumerate(program):
+        if op.kind == "get":
+            for s in op.slots.tolist():
+                assert s not in written, f"op {k} overwrites slot {s} that op {written[s]} wrote and nothing read"
+                written[s] = k
+        elif op.kind == "set":
+            for s, rule in zip(op.slots.tolist(), op.rules.tolist(), strict=True):
+                if rule in (1, 2):  # fresh, mean: they read the latest values
+                    written.pop(s, None)
+
+
+def _python_g12(values) -> list[str]:
+    return ["%.12g" % x for x in np.asarray(values, dtype=float).ravel().tolist()]  # noqa: UP031 (the CSV's own format)
+
+
+def test_the_compiled_csv_formatter_writes_numbers_exactly_as_python():
+    formatter = native_stepper.csv_formatter()
+    assert formatter is not None
+    rng = np.random.default_rng(17)
+    ties = rng.integers(10**11, 10**12, size=20000).astype(float) + 0.5  # exact halves at the 12th digit
+    powers = 10.0 ** np.arange(-40, 41)
+    samples = [
+        rng.normal(size=200000) * 10.0 ** rng.integers(-45, 45, size=200000),
+        rng.integers(0, 2**63, size=200000, dtype=np.int64).view(np.float64),  # every exponent, NaN and inf
+        ties, np.nextafter(ties, 0), np.nextafter(ties, np.inf), ties * 10.0 ** rng.integers(-30, 30, size=20000),
+        powers, np.nextafter(powers, 0), np.nextafter(powers, np.inf), powers * 0.9999999999995,
+        np.array([0.0, -0.0, np.inf, -np.inf, np.nan, -np.nan, 5e-324, 2.2250738585072014e-308,
+                  1.7976931348623157e308, 1e-5, 1e-4, 123456789012.0, 999999999999.5, 0.1, 1 / 3]),
+    ]
+    for values in samples:
+        block = np.ascontiguousarray(values.reshape(-1, 1))
+        assert formatter(block).decode().splitlines() == _python_g12(values)
+    block = rng.normal(size=(300, 7))
+    assert formatter(block).decode() == "".join(",".join(_python_g12(r)) + "\n" for r in block)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_timeseries_writer_writes_what_row_by_row_formatting_writes(tmp_path, monkeypatch, compiled):
+    from orchestration.master.recorder import write_timeseries
+
+    if not compiled:
+        monkeypatch.setattr(native_stepper, "csv_formatter", lambda: None)
+    rng = np.random.default_rng(18)
+    time = np.arange(12001) * 1e-3
+    data = rng.normal(size=(12001, 5)) * 10.0 ** rng.integers(-20, 6, size=(12001, 5))
+    data[7, 2], data[9, 0], data[11, 4] = np.nan, -np.inf, -0.0
+    names = ["a.x", "b.y", "c.z", "d.w", "e.v"]
+    write_timeseries(tmp_path / "timeseries.csv", time, names, data)
+    rows = np.column_stack([time, data])
+    expected = ",".join(["time", *names]) + "\n" + "".join(",".join(_python_g12(r)) + "\n" for r in rows)
+    assert (tmp_path / "timeseries.csv").read_bytes() == expected.encode()
+    assert not [p.name for p in tmp_path.iterdir() if p.name != "timeseries.csv"]  # no temporary file left

@@ -1,26 +1,47 @@
-"""Reliability: failing units, NaN, divergence, interrupts; partial results kept and marked; fuzzing."""
+"""Reliability: failing units, NaN, divergence, interrupts; partial results kept and marked; hostile input.
+
+The property tests at the end take the project's real scenarios, SSP packages and records,
+change one thing at a time (a key's value, a deleted key, a byte, an archive entry) and run
+the command-line tools on them (``main(argv)`` in this process; a few as subprocesses).
+Whatever the change, a tool must end with one of its documented exit codes and no
+traceback; exit 2 writes nothing; a run writes only its run folder, and leaves no
+temporary files behind.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import copy
+import functools
+import io
 import json
+import os
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from hypothesis.errors import InvalidArgument
 
 from components.build.pythonfmu_units import FmuSource, build
+from orchestration import identify, run, ssp, study, tune
+from orchestration.interop.ssp import export_ssp
 from orchestration.master.errors import ScenarioError
 from orchestration.master.scenario import load_scenario
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario, resolve_scenario
+from orchestration.master.yaml_source import DataFile
+from orchestration.project import file_kind, plan_scenario
 
 from .conftest import PROJECT
 
@@ -179,45 +200,486 @@ def test_malformed_fmus_are_clear_scenario_errors(tmp_path, files, message):
     assert "units.isolator.fmu" in text and message in text
 
 
-# -- fuzzing ---------------------------------------------------------------------------------------
-scalars = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True, allow_infinity=True),
-                    st.text(max_size=12))
-KEYS = ["name", "units", "connections", "simulation", "outputs", "results", "report", "limits", "extends", "step",
-        "stop_time", "fmu", "parameters", "ground", "building", "record", "algorithm", "inputs", "source", "target",
-        "delayed", "max_abs", "x"]
-trees = st.recursive(scalars, lambda kids: st.one_of(
-    st.lists(kids, max_size=4), st.dictionaries(st.sampled_from(KEYS), kids, max_size=5)), max_leaves=25)
+
+# -- hostile input: one change at a time to real scenarios, packages and records ---------------------
+
+SHORT = 0.02  # s: every mutated scenario that still runs stops after 20 steps
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(tree=trees)
-def test_fuzzed_structures_only_raise_scenario_errors(tmp_path, tree):
-    path = tmp_path / "fuzz.yaml"
-    path.write_text(yaml.safe_dump(tree))
-    before = set(tmp_path.iterdir())
+def _runnable(path: Path) -> bool:
     try:
-        resolve_scenario(load_scenario(path), build=False)
+        load_scenario(path, (f"simulation.stop_time={SHORT}",))
     except ScenarioError:
-        pass
-    assert set(tmp_path.iterdir()) == before  # nothing written
+        return False
+    return True
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(text=st.text(alphabet=st.characters(codec="utf-8"), max_size=200))
-def test_fuzzed_yaml_text_only_raises_scenario_errors(tmp_path, text):
-    path = tmp_path / "fuzz.yaml"
-    path.write_text(text)
+SCENARIOS = [p for p in sorted((PROJECT / "scenarios").glob("*.yaml")) if file_kind(p) == "scenario" and _runnable(p)]
+HOSTILE_VALUES = [None, True, False, 0, -1, 1e308, -1e308, 5e-324, float("inf"), float("nan"), "", "x",
+                  "../../escape", "/dev/zero", "1_0", "1e-3", [], {}, [[[["deep"]]]], "A" * 2000,
+                  DataFile("/dev/zero", "record"), DataFile("nowhere.csv", "data"), DataFile("x", "record")]
+FAST = settings(max_examples=30, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+class _Dumper(yaml.SafeDumper):
+    """Writes DataFile values back as !record / !data tags."""
+
+
+_Dumper.add_representer(DataFile, lambda d, v: d.represent_scalar(f"!{v.kind}", v.name))
+_Dumper.add_representer(float, lambda d, v: d.represent_scalar("tag:yaml.org,2002:float", repr(v).replace(
+    "inf", ".inf").replace("nan", ".nan")) if v != v or v in (float("inf"), float("-inf")) else
+    yaml.SafeDumper.represent_float(d, v))
+
+
+@functools.cache
+def _standalone(path: Path) -> dict[str, Any]:
+    loaded = load_scenario(path, (f"simulation.stop_time={SHORT}", "simulation.start_time=0"))
+    tree = copy.deepcopy(loaded.raw)
+    for unit in tree["units"]:
+        tree["units"][unit]["fmu"] = str(loaded.fmu_path(unit))
+    return tree
+
+
+def standalone(path: Path) -> dict[str, Any]:
+    """A real scenario as one self-contained tree: ``extends`` merged, FMU paths absolute, a 20-step run."""
+    return copy.deepcopy(_standalone(path))
+
+
+def key_paths(tree: Any, path: tuple = ()) -> list[tuple]:
+    """Every key path of a tree (mappings and lists), the tree itself excluded."""
+    out = []
+    if isinstance(tree, dict):
+        items = list(tree.items())
+    elif isinstance(tree, list):
+        items = list(enumerate(tree))
+    else:
+        return out
+    for key, value in items:
+        out.append((*path, key))
+        out += key_paths(value, (*path, key))
+    return out
+
+
+def mutate(tree: dict[str, Any], path: tuple, op: str, value: Any) -> dict[str, Any]:
+    """A copy of the tree with the value at ``path`` replaced, deleted, or given an unknown sibling."""
+    out = copy.deepcopy(tree)
+    node = out
+    for part in path[:-1]:
+        node = node[part]
+    last = path[-1]
+    if op == "replace":
+        node[last] = value
+    elif op == "delete":
+        del node[last]
+    elif isinstance(node, dict):
+        node["unknown_key_" + str(last)] = value
+    else:
+        node.append(value)
+    return out
+
+
+@dataclass
+class Outcome:
+    code: int
+    out: str
+    err: str
+    created: list[str]  # new entries of the working folder
+    leftovers: list[str]  # new entries of the temporary folder
+
+
+def run_tool(main: Callable[[list[str]], int], argv: list[str], work: Path) -> Outcome:
+    """Run a tool's main(argv) in ``work`` with a private temporary folder; what it printed and left."""
+    before = set(os.listdir(work))
+    private_tmp = Path(tempfile.mkdtemp(prefix="tmp-", dir=work.parent))
+    out, err = io.StringIO(), io.StringIO()
+    saved_tmp = tempfile.tempdir
+    tempfile.tempdir = str(private_tmp)
     try:
-        resolve_scenario(load_scenario(path), build=False)
-    except ScenarioError:
-        pass
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fuzz.yaml"]
+        with contextlib.chdir(work), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(argv)
+            except SystemExit as exc:  # argparse
+                code = exc.code if isinstance(exc.code, int) else 2
+    finally:
+        tempfile.tempdir = saved_tmp
+    leftovers = sorted(os.listdir(private_tmp))
+    created = sorted(set(os.listdir(work)) - before)
+    return Outcome(code, out.getvalue(), err.getvalue(), created, leftovers)
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(key=st.text(max_size=30), value=st.text(max_size=30))
-def test_fuzzed_overrides_only_raise_scenario_errors(tmp_path, key, value):
-    try:
-        resolve_scenario(load_scenario(PROJECT / "scenarios" / "elcentro.yaml", (f"{key}={value}",)), build=False)
-    except ScenarioError:
-        pass
+def check_outcome(o: Outcome, allowed: set[int], out_name: str | None) -> None:
+    """The properties every tool run must have, whatever its input."""
+    with contextlib.suppress(InvalidArgument):  # outside a property test there is nothing to record
+        event(f"exit {o.code}")  # --hypothesis-show-statistics: how many cases ran, failed, were refused
+    text = o.out + o.err
+    assert o.code in allowed, (o.code, text[-2000:])
+    assert "Traceback" not in text and "internal error" not in text, text[-2000:]
+    if o.code != 0:
+        assert o.err.strip(), "a failure must say why"
+    assert not o.leftovers, f"temporary files left behind: {o.leftovers}"
+    if o.code in (2, 130):
+        assert o.created == [], f"exit {o.code} wrote {o.created}"
+        return
+    if out_name is not None and o.code in (0, 1):
+        assert o.created in ([out_name], []), o.created  # nothing outside the run folder
+        folder = Path(out_name)
+        if o.created:
+            summary = json.loads((folder / "summary.json").read_text()) if (folder / "summary.json").exists() else None
+            assert summary is None or summary["complete"] is (o.code == 0)
+
+
+def _run_scenario_file(tmp_path: Path, text: bytes | str, use_out: bool) -> tuple[Outcome, Path]:
+    work = Path(tempfile.mkdtemp(prefix="case-", dir=tmp_path))
+    scenario = work / "mutated.yaml"
+    scenario.write_bytes(text if isinstance(text, bytes) else text.encode())
+    argv = [str(scenario), "--no-plots", "--quiet", *(["--out", str(work / "out")] if use_out else [])]
+    return run_tool(run.main, argv, work), work
+
+
+@FAST
+@given(data=st.data())
+def test_one_key_changed_in_a_real_scenario(tmp_path, data):
+    base = standalone(data.draw(st.sampled_from(SCENARIOS), label="scenario"))
+    path = data.draw(st.sampled_from(key_paths(base)), label="key")
+    op = data.draw(st.sampled_from(["replace", "replace", "delete", "add"]), label="op")
+    value = data.draw(st.sampled_from(HOSTILE_VALUES), label="value")
+    use_out = data.draw(st.booleans(), label="--out")
+    outcome, work = _run_scenario_file(tmp_path, yaml.dump(mutate(base, path, op, value), Dumper=_Dumper), use_out)
+    with contextlib.chdir(work):
+        check_outcome(outcome, {0, 1, 2}, "out" if use_out else "runs")
+
+
+@FAST
+@given(data=st.data())
+def test_one_byte_changed_in_a_real_scenario(tmp_path, data):
+    text = yaml.dump(standalone(data.draw(st.sampled_from(SCENARIOS), label="scenario")), Dumper=_Dumper).encode()
+    at = data.draw(st.integers(0, len(text) - 1), label="offset")
+    how = data.draw(st.sampled_from(["invalid utf-8", "nul", "truncate", "tab", "anchor", "alias"]), label="how")
+    piece = {"invalid utf-8": b"\xe9\xff", "nul": b"\x00", "truncate": b"", "tab": b"\t", "anchor": b"&a ",
+             "alias": b"*a "}[how]
+    mutated = text[:at] + piece + (b"" if how == "truncate" else text[at:])
+    outcome, work = _run_scenario_file(tmp_path, mutated, True)
+    with contextlib.chdir(work):
+        check_outcome(outcome, {0, 1, 2}, "out")
+
+
+OVERRIDES = ["simulation.step=true", "simulation.stop_time=.inf", "simulation.step=1e-320", "x=&a [*a]",
+             "simulation.stop_time=1e9", "controller.mode=pasive", "name=../../escape", "name=.hidden",
+             "units.ground.fmu=/dev/zero", "ground.record=!data missing.csv", "ground.record=!record /dev/zero",
+             "connections=[{source: ground.ag, target: building.ag, delayed: 1}]", "limits.max_abs={x: true}",
+             "report.displacement_limits={a: true}", "simulation=[" * 100, "units=&a {b: *a}", "=1", "a..b=1",
+             "units.ground.parameters.scale=1_0", "results.dir=\x00"]
+
+
+@pytest.mark.parametrize("override", OVERRIDES)
+def test_hostile_overrides_are_exit_2_naming_the_cause(tmp_path, override):
+    work = tmp_path / "work"
+    work.mkdir()
+    argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", f"simulation.stop_time={SHORT}",
+            "--set", override, "--out", str(work / "out"), "--no-plots", "--quiet"]
+    outcome = run_tool(run.main, argv, work)
+    check_outcome(outcome, {2}, "out")
+
+
+def test_a_misspelt_string_choice_is_refused_before_the_run_with_a_suggestion(tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", "controller.mode=pasive", "--out",
+            str(work / "out"), "--quiet"]
+    outcome = run_tool(run.main, argv, work)
+    assert outcome.code == 2 and outcome.created == []
+    assert "mode = 'pasive' is not one of 'sosm', 'passive' (did you mean 'passive'?)" in outcome.err
+
+
+def test_a_run_too_large_for_its_budget_is_refused_before_any_folder(tmp_path, monkeypatch):
+    monkeypatch.setenv("MRE_COSIM_MAX_RESULT_MB", "1000")  # the default (free disk) depends on the machine
+    work = tmp_path / "work"
+    work.mkdir()
+    argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", "simulation.stop_time=1e5", "--quiet"]
+    outcome = run_tool(run.main, argv, work)
+    assert outcome.code == 2 and outcome.created == []
+    assert "100,000,001 samples" in outcome.err and "MRE_COSIM_MAX_RESULT_MB" in outcome.err
+
+
+# -- SSP packages ------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def short_ssp(tmp_path_factory) -> Path:
+    """The El Centro scenario, 20 steps, as an SSP package."""
+    plan = plan_scenario(PROJECT / "scenarios" / "elcentro.yaml", (f"simulation.stop_time={SHORT}",))
+    return export_ssp(plan, tmp_path_factory.mktemp("ssp") / "elcentro.ssp")
+
+
+def _copy_zip(src: Path, dest: Path, edit: Callable[[str, bytes], bytes | None],
+              extra: dict[str, bytes] | None = None) -> None:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = edit(info.filename, zin.read(info))
+            if data is not None:
+                zout.writestr(info.filename, data)
+        for name, data in (extra or {}).items():
+            zout.writestr(name, data)
+
+
+SSP_VALUES = ["abc", "INF", "-INF", "NaN", "", "1e400", "../../x", "/etc/passwd", "0", "-1", "true", "1_0",
+              "resources/../../x", "\u00e9"]
+
+
+@FAST
+@given(data=st.data())
+def test_one_attribute_changed_in_a_real_ssp(tmp_path, short_ssp, data):
+    from lxml import etree
+
+    with zipfile.ZipFile(short_ssp) as z:
+        members = [n for n in z.namelist() if n.endswith((".ssd", ".ssv"))]
+    member = data.draw(st.sampled_from(members), label="member")
+    with zipfile.ZipFile(short_ssp) as z:
+        root = etree.fromstring(z.read(member))
+    elements = [e for e in root.iter() if isinstance(e.tag, str) and (e.attrib or (e.text and e.text.strip()))]
+    element = data.draw(st.sampled_from(elements), label="element")
+    choices = [*element.attrib, *(["#text"] if element.text and element.text.strip() else [])]
+    attr = data.draw(st.sampled_from(choices), label="attribute")
+    op = data.draw(st.sampled_from(["set", "set", "delete"]), label="op")
+    value = data.draw(st.sampled_from(SSP_VALUES), label="value")
+    if attr == "#text":
+        element.text = value if op == "set" else ""
+    elif op == "set":
+        element.set(attr, value)
+    else:
+        del element.attrib[attr]
+    mutated = etree.tostring(root)
+    work = Path(tempfile.mkdtemp(prefix="case-", dir=tmp_path))
+    package = work / "mutated.ssp"
+    _copy_zip(short_ssp, package, lambda name, raw: mutated if name == member else raw)
+    outcome = run_tool(run.main, [str(package), "--out", str(work / "out"), "--no-plots", "--quiet"], work)
+    with contextlib.chdir(work):
+        check_outcome(outcome, {0, 1, 2}, "out")
+
+
+def _symlink_entry(name: str, target: str) -> tuple[zipfile.ZipInfo, bytes]:
+    info = zipfile.ZipInfo(name)
+    info.external_attr = (0o120777 << 16)
+    return info, target.encode()
+
+
+@pytest.mark.parametrize("case", ["traversal", "absolute", "symlink", "bomb", "entries", "no ssd", "truncated",
+                                  "fmu removed", "record removed", "settings units", "results outside"])
+def test_hostile_ssp_archives_are_exit_2_and_extract_nothing(tmp_path, short_ssp, case):
+    work = tmp_path / "work"
+    work.mkdir()
+    package = work / "hostile.ssp"
+    keep: Callable[[str, bytes], bytes | None] = lambda name, raw: raw  # noqa: E731
+    if case == "traversal":
+        _copy_zip(short_ssp, package, keep, {"../../escaped.txt": b"x"})
+    elif case == "absolute":
+        _copy_zip(short_ssp, package, keep, {"/tmp/escaped.txt": b"x"})
+    elif case == "symlink":
+        _copy_zip(short_ssp, package, keep)
+        with zipfile.ZipFile(package, "a") as z:
+            z.writestr(*_symlink_entry("resources/link", "/etc/passwd"))
+    elif case == "bomb":  # 300 MiB of zeros, 300 kB compressed
+        _copy_zip(short_ssp, package, keep)
+        with zipfile.ZipFile(package, "a", zipfile.ZIP_DEFLATED) as z, z.open("resources/zeros.bin", "w",
+                                                                              force_zip64=True) as f:
+            block = bytes(1 << 20)
+            for _ in range(300):
+                f.write(block)
+    elif case == "entries":
+        _copy_zip(short_ssp, package, keep, {f"resources/e{k}.txt": b"" for k in range(10_001)})
+    elif case == "no ssd":
+        _copy_zip(short_ssp, package, lambda name, raw: None if name.endswith(".ssd") else raw)
+    elif case == "truncated":
+        package.write_bytes(short_ssp.read_bytes()[: short_ssp.stat().st_size // 2])
+    elif case == "fmu removed":
+        _copy_zip(short_ssp, package, lambda name, raw: None if name.endswith("MreIsolator.fmu") else raw)
+    elif case == "record removed":
+        _copy_zip(short_ssp, package, lambda name, raw: None if name.endswith(".csv") else raw)
+    elif case == "settings units":
+        _copy_zip(short_ssp, package, lambda name, raw: raw.replace(
+            b'"format": 1,', b'"format": 1, "units": {"x": {"fmu": "/etc/passwd"}},') if name.endswith(".ssd")
+            else raw)
+    else:
+        _copy_zip(short_ssp, package, lambda name, raw: raw.replace(b'"dir": "runs"', b'"dir": "/tmp/outside"')
+                  if name.endswith(".ssd") else raw)
+    outcome = run_tool(run.main, [str(package), "--out", str(work / "out"), "--no-plots", "--quiet"], work)
+    check_outcome(outcome, {2}, "out")
+    assert not (tmp_path / "escaped.txt").exists() and not Path("/tmp/escaped.txt").exists()
+
+
+# -- records and FMUs --------------------------------------------------------------------------------
+
+RECORD_TOKENS = ["1_0", "inf", "nan", "0x10", "abc", "", "1e400", "-", "1,2,3", "\u00e9", "1e-3", "+.5"]
+
+
+@FAST
+@given(data=st.data())
+def test_one_token_changed_in_a_real_record(tmp_path, data):
+    source = data.draw(st.sampled_from(sorted((PROJECT / "scenarios" / "records").glob("*.csv"))), label="record")
+    lines = source.read_text().splitlines()
+    k = data.draw(st.integers(0, min(len(lines) - 1, 400)), label="line")
+    token = data.draw(st.sampled_from(RECORD_TOKENS), label="token")
+    parts = lines[k].split(",")
+    parts[data.draw(st.integers(0, len(parts) - 1), label="column")] = token
+    lines[k] = ",".join(parts)
+    work = Path(tempfile.mkdtemp(prefix="case-", dir=tmp_path))
+    record = work / "record.csv"
+    record.write_text("\n".join(lines) + "\n")
+    argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", f"simulation.stop_time={SHORT}", "--set",
+            f"ground.record=!record {record}", "--out", str(work / "out"), "--no-plots", "--quiet"]
+    outcome = run_tool(run.main, argv, work)
+    with contextlib.chdir(work):
+        check_outcome(outcome, {0, 2}, "out")
+
+
+@pytest.mark.parametrize(("header", "message"), [
+    ("NPTS= 3, DT= 1e308", "not finite"),
+    ("NPTS= 3, DT= ..", "DT is not a number"),
+    ("NPTS= 3, DT= inf", "must give NPTS and DT"),
+    ("NPTS= 3, DT= 0", "DT must be positive"),
+])
+def test_at2_time_steps_must_give_finite_increasing_times(tmp_path, header, message):
+    from components.physics.ground_motion_core import RecordError, read_record
+
+    path = tmp_path / "r.at2"
+    path.write_text(f"title\nx\ny\n{header}\n0.1 0.2 0.3\n")
+    with pytest.raises(RecordError, match=message):
+        read_record(path)
+
+
+def _fmu_with(src: Path, dest: Path, how: str) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            raw = zin.read(info)
+            if info.filename.startswith("binaries/linux64/"):
+                raw = {"garbage": b"garbage" * 1000, "truncated": raw[:4096], "empty": b"",
+                       "other cpu": raw[:18] + b"\xb7\x00" + raw[20:]}.get(how, raw)
+                if how == "no binary":
+                    continue
+            zout.writestr(info, raw)
+    return dest
+
+
+@pytest.mark.parametrize("how", ["garbage", "truncated", "empty", "other cpu", "no binary"])
+def test_an_fmu_whose_library_cannot_load_is_exit_2_before_any_folder(tmp_path, how):
+    work = tmp_path / "work"
+    work.mkdir()
+    fmu = _fmu_with(PROJECT / "fmus" / "MreIsolator.fmu", tmp_path / "bad.fmu", how)
+    argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", f"units.isolator.fmu={fmu}", "--out",
+            str(work / "out"), "--quiet"]
+    outcome = run_tool(run.main, argv, work)
+    check_outcome(outcome, {2}, "out")
+    assert "units.isolator.fmu" in outcome.err and "bad.fmu" in outcome.err
+
+
+def test_an_fmu_that_unpacks_beyond_the_limit_is_refused(tmp_path):
+    from orchestration.master.fmu_file import FmuFormatError, read_description
+
+    fmu = tmp_path / "bomb.fmu"
+    _copy_zip(PROJECT / "fmus" / "MreIsolator.fmu", fmu, lambda name, raw: raw)
+    with zipfile.ZipFile(fmu, "a", zipfile.ZIP_DEFLATED) as z, z.open("resources/zeros", "w", force_zip64=True) as f:
+        for _ in range(260):
+            f.write(bytes(1 << 20))
+    with pytest.raises(FmuFormatError, match=r"unpacks to .* more than"):
+        read_description(fmu, "x")
+
+
+# -- every tool: hostile files, the crash path, interrupts ---------------------------------------------
+
+
+def _hostile_file(work: Path, kind: str) -> Path:
+    path = work / f"hostile-{kind.replace(' ', '_')}.yaml"
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "latin-1":
+        path.write_bytes(b"name: caf\xe9\n")
+    elif kind == "deep":
+        path.write_text("a: " + "[" * 5000 + "]" * 5000 + "\n")
+    elif kind == "laughs":
+        rows = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+        rows += [f"{c}: &{c} [{', '.join([f'*{p}'] * 10)}]" for p, c in zip("abcdefgh", "bcdefghi", strict=True)]
+        path.write_text("\n".join(rows) + "\n")
+    elif kind == "recursive":
+        path.write_text("a: &a [*a]\n")
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "device":
+        return Path("/dev/zero")
+    return path
+
+
+TOOLS = {"run.py": (run.main, []), "study.py": (study.main, []), "tune.py": (tune.main, []),
+         "identify.py": (identify.main, ["--no-progress"]), "ssp.py check": (ssp.main, None),
+         "ssp.py export": (ssp.main, None)}
+
+
+@pytest.mark.parametrize("kind", ["fifo", "latin-1", "deep", "laughs", "recursive", "folder", "device", "missing"])
+@pytest.mark.parametrize("tool", list(TOOLS))
+def test_every_tool_refuses_hostile_files_with_exit_2(tmp_path, tool, kind):
+    work = tmp_path / "work"
+    work.mkdir()
+    path = _hostile_file(tmp_path, kind)
+    main, extra = TOOLS[tool]
+    if tool == "ssp.py check":
+        argv = ["check", str(path)]
+    elif tool == "ssp.py export":
+        argv = ["export", str(path), str(work / "x.ssp")]
+    else:
+        argv = [str(path), *extra, "--out", str(work / "out")]
+    t0 = time.monotonic()
+    outcome = run_tool(main, argv, work)
+    assert time.monotonic() - t0 < 30, "took too long (a hang or an expansion)"
+    check_outcome(outcome, {2}, "out")
+
+
+def test_an_internal_error_is_exit_3_with_one_line_and_a_log(tmp_path, monkeypatch):
+    import orchestration.project
+
+    def bug(*args, **kwargs):
+        raise ZeroDivisionError("deliberate")
+
+    monkeypatch.setattr(orchestration.project, "plan_scenario", bug)
+    monkeypatch.setenv("MRE_COSIM_CRASH_DIR", str(tmp_path))
+    work = tmp_path / "work"
+    work.mkdir()
+    outcome = run_tool(run.main, [str(PROJECT / "scenarios" / "elcentro.yaml"), "--quiet"], work)
+    assert outcome.code == 3 and outcome.created == []
+    line, = outcome.err.strip().splitlines()
+    assert "internal error (this is a bug" in line and "ZeroDivisionError: deliberate" in line
+    log = Path(line.rsplit("traceback in ", 1)[1])
+    assert log.parent == tmp_path and "Traceback" in log.read_text() and "deliberate" in log.read_text()
+
+
+@pytest.mark.parametrize("delay", [0.4, 0.9])
+def test_ctrl_c_while_starting_is_one_line_and_exit_130(tmp_path, delay):
+    proc = subprocess.Popen([*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(tmp_path / "out"),
+                             "--quiet", "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=tmp_path)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert "Traceback" not in err
+    assert proc.returncode in (1, 130), err
+    if proc.returncode == 130:
+        assert "nothing written" in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("dest", ["README.md/sub", "/proc/mre-cosim-test"])
+def test_the_build_tool_refuses_an_unusable_dest(dest):
+    proc = subprocess.run([sys.executable, "-m", "components.build", "--dest", dest], cwd=PROJECT,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    assert not (PROJECT / "README.md").is_dir()
+
+
+@pytest.mark.parametrize("tool", ["run.py", "study.py", "tune.py", "identify.py", "ssp.py"])
+def test_every_tool_documents_its_exit_codes(tool, capsys):
+    main = {"run.py": run.main, "study.py": study.main, "tune.py": tune.main, "identify.py": identify.main,
+            "ssp.py": ssp.main}[tool]
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "exit codes: 0" in text and "3 internal error" in text and "130 interrupted" in text

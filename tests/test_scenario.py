@@ -243,3 +243,80 @@ def test_the_wrong_kind_of_file_names_the_right_tool(tmp_path, tool, file, hint)
     assert proc.returncode == 2 and hint in proc.stderr
     assert "unknown key" not in proc.stderr  # one line, not a wall of unknown keys
     assert not (tmp_path / "out").exists()
+
+
+# -- strict values and bounded input ----------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("simulation.step=true", "simulation.step: Input should be a valid number"),
+    ("simulation.stop_time=.inf", "simulation.stop_time: Input should be a finite number"),
+    ("simulation.step=1e-320", "more than 1e+12"),
+    ("connections=[{source: ground.ag, target: building.ag, delayed: 1}]", "connections[0].delayed"),
+    ("limits.max_abs={building.x_0: true}", "limits.max_abs.building.x_0"),
+    ("ground.scale=.nan", "must be a finite number"),
+    ("name=../escape", "must be a plain name"),
+    ("x=&a [*a]", "an alias refers to the anchor that contains it"),
+])
+def test_values_are_strict(override, message):
+    text = "\n".join(problems_of(SCENARIOS / "elcentro.yaml", [override]))
+    assert message in text
+
+
+def test_yaml_1_2_numbers_exponents_are_numbers_and_python_spellings_are_not(tmp_path):
+    base = f"extends: {SCENARIOS / 'elcentro.yaml'}\n"
+    loaded = load_scenario(write(tmp_path, base + "simulation: {step: 1e-3, stop_time: 2E1}\n"))
+    assert loaded.scenario.simulation.step == 0.001 and loaded.scenario.simulation.stop_time == 20.0
+    problems = problems_of(write(tmp_path, base + "simulation: {step: 1_0}\n", "u.yaml"))
+    assert any("simulation.step: Input should be a valid number" in p for p in problems)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    (b"name: caf\xe9\n", "not UTF-8 text (byte 0xe9 at offset 9)"),
+    (("a: " + "[" * 500 + "]" * 500).encode(), "nested more than 64 levels deep"),
+    (("a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [{', '.join([f'*{p}'] * 10)}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True))).encode(),
+     "expands to more than 20,000 values"),
+    (b"a: &a {b: *a}\n", "recursive structure"),
+    (b"a: !!float abc\n", "cannot read value"),
+])
+def test_hostile_yaml_is_a_scenario_error_naming_the_file(tmp_path, text, message):
+    path = tmp_path / "h.yaml"
+    path.write_bytes(text)
+    problems = problems_of(path)
+    assert any(message in p and "h.yaml" in p for p in problems), problems
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder", "extends fifo", "extends device"])
+def test_only_regular_files_are_read(tmp_path, kind):
+    import os
+
+    if kind in ("fifo", "extends fifo"):
+        os.mkfifo(tmp_path / "f.yaml")
+    target = {"fifo": tmp_path / "f.yaml", "device": Path("/dev/zero"), "folder": tmp_path}.get(kind)
+    if target is None:
+        target = write(tmp_path, f"extends: {tmp_path / 'f.yaml' if 'fifo' in kind else '/dev/zero'}\n", "s.yaml")
+    problems = problems_of(target)
+    assert any("not a regular file" in p for p in problems), problems
+
+
+def test_a_result_too_large_for_the_disk_budget_is_refused(monkeypatch, tmp_path):
+    from orchestration.master.scenario import MEMORY_ENV, result_size_problem
+
+    sim = load_scenario(SCENARIOS / "kobe.yaml").scenario.simulation
+    # 150,001 rows x 26 columns x (8 bytes recorded + at most 20 bytes of CSV) = 104 MiB
+    monkeypatch.setenv(MEMORY_ENV, "10")
+    text = result_size_problem(sim, 25, tmp_path)
+    assert "150,001 samples x 26 columns" in text and "104 MiB" in text and "10 MiB" in text
+    monkeypatch.setenv(MEMORY_ENV, "200")
+    assert result_size_problem(sim, 25, tmp_path) is None
+    monkeypatch.delenv(MEMORY_ENV)  # the default budget is the free space where the results go
+    assert result_size_problem(sim, 25, tmp_path / "not" / "yet") is None
+
+
+def test_string_choices_declared_in_a_description():
+    from orchestration.master.system import declared_choices
+
+    assert declared_choices("'sosm' or 'passive' (constant current)") == ("sosm", "passive")
+    assert declared_choices('one of "a", "b" | "c"') == ("a", "b", "c")
+    assert declared_choices("the 'sosm' mode") == () and declared_choices("") == ()

@@ -260,3 +260,57 @@ def test_run_cli_takes_a_package(kobe_ssp, tmp_path):
     assert done.returncode == 0, done.stderr
     assert (out / "timeseries.csv").read_text().count("\n") == 502  # header + 501 rows
     assert '"complete": true' in (out / "summary.json").read_text()
+
+
+# -- hostile packages ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("member", "old", "new", "message"), [
+    ("resources/ground.ssv", 'value="0.5"', 'value="abc"', "parameter 'scale': 'abc' is not a number"),
+    (SSD_FILE, 'stopTime="150.0"', 'stopTime="INF"', "DefaultExperiment stopTime: 'INF' is not finite"),
+    (SSD_FILE, '"format": 1,', '"format": 1, "units": {"x": {"fmu": "/etc/passwd"}},',
+     "annotation may not set 'units'"),
+    (SSD_FILE, '"format": 1,', '"format": 1, "name": "../x",', "annotation may not set 'name'"),
+    (SSD_FILE, '"step":', '"stop_time": 1e9, "step":', "may not set simulation.stop_time"),
+    (SSD_FILE, '"dir": "runs"', '"dir": "/tmp/elsewhere"', "must be a relative folder inside the working folder"),
+    (SSD_FILE, '"dir": "runs"', '"dir": "../up"', "must be a relative folder inside the working folder"),
+])
+def test_hostile_values_in_a_package_are_problems(kobe_ssp, tmp_path, member, old, new, message):
+    bad = _rewrite(kobe_ssp, tmp_path / "bad.ssp", member, lambda t: t.replace(old, new, 1))
+    with pytest.raises(ScenarioError) as exc:
+        load_ssp(bad)
+    assert any(message in p.message for p in _problems(exc)), _problems(exc)
+
+
+def test_a_package_name_cannot_leave_the_results_folder(kobe_ssp, tmp_path):
+    bad = _rewrite(kobe_ssp, tmp_path / "bad.ssp", SSD_FILE, lambda t: t.replace('name="kobe"', 'name="../up"', 1))
+    with pytest.raises(ScenarioError, match="must be a plain name"):
+        load_ssp(bad)
+
+
+@pytest.mark.parametrize(("entry", "message"), [
+    ("../../escaped.txt", "'..' in the path"), ("/tmp/escaped.txt", "an absolute path")])
+def test_archive_entries_outside_the_folder_are_refused(kobe_ssp, tmp_path, entry, message):
+    bad = tmp_path / "bad.ssp"
+    bad.write_bytes(kobe_ssp.read_bytes())
+    with zipfile.ZipFile(bad, "a") as z:
+        z.writestr(entry, "x")
+    with pytest.raises(ScenarioError, match=message):
+        load_ssp(bad, workdir=tmp_path / "x")
+    assert not (tmp_path / "escaped.txt").exists() and not (tmp_path / "x").exists()
+
+
+def test_an_archive_beyond_the_size_limit_is_refused_before_extracting(kobe_ssp, tmp_path, monkeypatch):
+    from orchestration.master import fmu_file
+
+    monkeypatch.setattr(fmu_file, "MAX_UNPACKED_BYTES", 1 << 20)
+    with pytest.raises(ScenarioError, match=r"unpacks to [\d,]+ bytes, more than the 1,048,576 allowed"):
+        load_ssp(kobe_ssp, workdir=tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+
+
+def test_records_keep_their_kind_through_a_package(kobe_ssp, kobe):
+    loaded = load_ssp(kobe_ssp)
+    record = loaded.scenario.units["ground"].parameters["record"]
+    assert record.kind == "record" and record.name.endswith(kobe.name)  # checked before a run, like !record
+    loaded.cleanup()

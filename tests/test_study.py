@@ -152,6 +152,26 @@ def test_a_failed_run_does_not_lose_the_others(tmp_path):
     assert 0 < np.mean(i) < 3.0
 
 
+def test_a_study_resumes_from_its_stored_jobs(tmp_path):
+    """A finished study resumed computes nothing; a lost result is computed again, to the same numbers."""
+    out = tmp_path / "study"
+    args = ("--set", "overrides=[simulation.stop_time=1.5]", "--set", "records={kobe: kobe.yaml}",
+            "--set", "strategies=[passive-off, on-off]", "--set", "reference={enabled: false}")
+    env = {**os.environ, "MRE_COSIM_CODE_VERSION": "tests"}  # others may edit the checkout meanwhile
+    run = lambda *a: subprocess.run([*CLI, *a], cwd=tmp_path, capture_output=True, text=True, timeout=240, env=env)  # noqa: E731
+    proc = run(str(STUDY), *args, "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    peaks = (out / "peaks.csv").read_text()
+    assert json.loads((out / "study.json").read_text())["jobs_computed"] == 2
+    assert run("--resume", str(out), "--quiet").returncode == 0
+    assert json.loads((out / "study.json").read_text())["jobs_computed"] == 0
+    assert (out / "peaks.csv").read_text() == peaks
+    next(iter(sorted((out / "jobs").glob("*.json")))).unlink()
+    assert run("--resume", str(out), "--quiet").returncode == 0
+    assert json.loads((out / "study.json").read_text())["jobs_computed"] == 1
+    assert (out / "peaks.csv").read_text() == peaks
+
+
 def test_switching_law():
     law = SwitchingLaw(i_high=2.0, i_low=0.5, i_max=1.5)
     assert law.current(0.01, 0.1) == 1.5 and law.current(-0.01, -0.1) == 1.5  # moving away: high, clipped

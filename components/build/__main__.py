@@ -1,5 +1,9 @@
-"""``python -m components.build``: build every FMU of the project into fmus/."""
+"""``python -m components.build``: build every FMU of the project into fmus/ (exit codes: see --help)."""
 
-from components.build.project_fmus import main
+from components.cli import quiet_interrupts
+
+quiet_interrupts()  # Ctrl-C or SIGTERM during the imports below: one line, exit 130, no traceback
+
+from components.build.project_fmus import main  # noqa: E402
 
 raise SystemExit(main())

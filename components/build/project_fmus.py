@@ -3,16 +3,26 @@
 ``python -m components.build [--dest fmus] [--force] [--storeys N ...]`` builds all FMUs;
 :func:`ensure_fmu` is the hook the command-line tools give the master, so that a scenario
 naming one of the project's FMUs in ``fmus/`` gets it built when it is missing or stale.
+Exit codes of the command: 0 built (or up to date); 1 a build failed (e.g. no C
+compiler); 2 bad arguments or an unusable ``--dest`` (nothing written); 3 internal error
+(a bug; the traceback is in the log file named); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 from pathlib import Path
 
 from components.build.c_isolator import ensure_c_isolator, is_c_isolator
 from components.build.model_description import DEFAULT_FMU_DIR, BuildError
 from components.build.pythonfmu_units import build, discover, is_stale, known_fmu
+from components.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, UsageError, guarded
+
+EPILOG = ("exit codes: 0 built or up to date; 1 a build failed (e.g. no C compiler); 2 bad arguments or an "
+          "unusable --dest (nothing written); " + EPILOG_COMMON)
+MAX_STOREYS = 100
 
 
 def ensure_built(dest: Path = DEFAULT_FMU_DIR, force: bool = False, storeys: tuple[int, ...] = ()) -> list[Path]:
@@ -47,16 +57,44 @@ def ensure_fmu(path: Path) -> str | None:
     return None
 
 
-def main(argv: list[str] | None = None) -> int:
+def _usable_dest(dest: Path) -> None:
+    """UsageError unless ``dest`` is (or can become) a writable folder; creates nothing."""
+    for folder in (dest, *dest.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise UsageError(f"--dest {dest}: {folder} is a file, not a folder (nothing written)")
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise UsageError(f"--dest {dest}: {folder} is not writable (nothing written)")
+            return
+
+
+def _build(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="python -m components.build",
-                                     description="Build the project's FMUs into fmus/.")
+                                     description="Build the project's FMUs into fmus/.", epilog=EPILOG)
     parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.add_argument(
         "--storeys", type=int, nargs="*", default=[], help="also build shear-building variants with N storeys"
     )
     args = parser.parse_args(argv)
-    for path in ensure_built(args.dest, args.force, tuple(args.storeys)):
+    bad = [n for n in args.storeys if not 1 <= n <= MAX_STOREYS]
+    if bad:
+        parser.error(f"--storeys: each N must be between 1 and {MAX_STOREYS}, got {bad}")
+    _usable_dest(args.dest)
+    try:
+        paths = ensure_built(args.dest, args.force, tuple(args.storeys))
+    except BuildError as exc:
+        print(f"error: build failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except OSError as exc:
+        where = exc.filename or args.dest
+        raise UsageError(f"--dest {args.dest}: cannot write {where}: {exc.strerror or exc}") from None
+    for path in paths:
         print(path)
-    return 0
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m components.build``; returns the exit code."""
+    return guarded(_build, argv, "python -m components.build")
 

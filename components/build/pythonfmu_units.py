@@ -16,6 +16,7 @@ Build everything with ``python -m components.build``.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import inspect
 import os
@@ -86,6 +87,17 @@ def _shell_class(module):
 
 def discover(storeys: tuple[int, ...] = ()) -> list[FmuSource]:
     """All FMU shells in components/shells/, plus building variants for the given storey counts."""
+    return list(_discover(tuple(sorted(set(storeys))), _shells_signature()))
+
+
+def _shells_signature() -> tuple[tuple[str, float], ...]:
+    """The shell scripts and their modification times: a changed shell is discovered again."""
+    return tuple((p.name, p.stat().st_mtime) for p in sorted(SHELLS_DIR.glob("*_fmu.py")))
+
+
+@functools.lru_cache(maxsize=16)
+def _discover(storeys: tuple[int, ...], signature: tuple[tuple[str, float], ...]) -> tuple[FmuSource, ...]:
+    """Loading every shell module costs ~0.1 s each: done once per process and set of shells."""
     found = []
     for script in sorted(SHELLS_DIR.glob("*_fmu.py")):
         module = _load_module(script, f"_discover_{script.stem}")
@@ -100,7 +112,7 @@ def discover(storeys: tuple[int, ...] = ()) -> list[FmuSource]:
                 found.append(FmuSource(script, cls.__name__, cores, storeys=n, **extra))
         else:
             found.append(FmuSource(script, cls.__name__, cores, **extra))
-    return found
+    return tuple(found)
 
 
 def is_stale(source: FmuSource, fmu: Path) -> bool:

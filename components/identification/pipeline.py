@@ -8,14 +8,16 @@ import shutil
 import sys
 import tempfile
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from components.identification import report
+from components.identification import bouc_wen_native, report
 from components.identification.bouc_wen_joint import fit_bouc_wen_joint
 from components.identification.config import IdentificationConfig
 from components.identification.ffoa import FFOASettings
@@ -89,38 +91,105 @@ def group(records: list[ShakeRecord], first_cycle: int, cycles: int) -> dict[Con
     return {c: fit_data(by[c], first_cycle, cycles) for c in sorted(by)}
 
 
+MapFunction = Callable[[Callable[[Any], Any], Sequence[Any]], Iterable[Any]]
+"""Like the builtin ``map``: apply a module-level function to every item (possibly in other
+processes) and give the results in the order of the items."""
+
+# CPU cost of one FFOA fly evaluation [s], measured on the 2-core machine (paper fit window,
+# 5 repeats; Bouc-Wen with the compiled kernel, or on the numpy path): enough to tell whether
+# spreading the conditions over processes is worth it. The structured identifier takes
+# milliseconds per condition.
+FLY_EVALUATION_S = {"hyperbolic-ffoa": 1.7e-6, "bouc_wen-ffoa": 1.8e-5, "bouc_wen-ffoa/numpy": 3e-4}
+PARALLEL_MIN_S = 30.0
+"""By default identify_all uses its map function only for FFOA work estimated above this
+[s]: starting the studies' engine (a local Dask cluster of two workers) costs about 12 s of
+CPU and 4-8 s of wall time, more than it saves on the default run's 11 s of FFOA (measured:
+32-35 s in one process against 39-60 s with two workers, load average 8-9)."""
+
+
+def estimated_ffoa_seconds(conditions: int, identifiers: Sequence[str], n_pop: int, n_iter: int) -> float:
+    """Rough CPU seconds of the FFOA identifications of a run (:data:`FLY_EVALUATION_S`)."""
+    numpy_path = bouc_wen_native.backend() == "numpy"
+    per_fly = sum(FLY_EVALUATION_S.get(f"{name}/numpy" if numpy_path and name == "bouc_wen-ffoa" else name, 0.0)
+                  for name in identifiers)
+    return conditions * n_pop * (n_iter + 1) * per_fly
+
+
+@dataclass(frozen=True)
+class ConditionTask:
+    """Everything needed to identify one condition with every configured identifier (picklable)."""
+
+    index: int
+    data: FitData
+    identifiers: tuple[str, ...]
+    ffoa: FFOASettings
+    ffoa_seed: int
+    acceptance: Acceptance
+    structured: dict[str, Any]
+
+
+def identify_condition(task: ConditionTask) -> list[IdentResult]:
+    """Every identifier of ``task`` on its condition, in the order of ``task.identifiers``.
+
+    FFOA runs are seeded per (ffoa.seed, condition index, identifier index), so the result
+    does not depend on which process runs the task, nor on the other tasks.
+    """
+    results = []
+    for j, name in enumerate(task.identifiers):
+        rng = np.random.default_rng([task.ffoa_seed, task.index, j])
+        if name == "hyperbolic-ffoa":
+            results.append(identify_hyperbolic_ffoa(task.data, rng, task.ffoa, task.acceptance))
+        elif name == "bouc_wen-ffoa":
+            results.append(identify_bouc_wen_ffoa(task.data, rng, task.ffoa, task.acceptance))
+        else:
+            results.append(identify_structured(task.data, task.acceptance, **task.structured))
+    return results
+
+
 def identify_all(
     data: dict[Condition, FitData],
     cfg: IdentificationConfig,
     progress: bool = True,
     on_result: Callable[[IdentResult], None] | None = None,
+    map_fn: MapFunction | None = None,
+    min_parallel_s: float = PARALLEL_MIN_S,
 ) -> dict[str, dict[Condition, IdentResult]]:
     """Run every configured identifier on every condition (progress bar over conditions).
 
-    FFOA runs are seeded per (ffoa.seed, condition index, identifier), so each is
-    reproducible on its own.
+    Conditions are independent tasks (:func:`identify_condition`) handed to ``map_fn``
+    (default: the builtin ``map``, in this process); pass a parallel map to spread them
+    over processes. It is used only if the FFOA work is estimated above ``min_parallel_s``
+    seconds (:func:`estimated_ffoa_seconds`; 0 = always). The results do not depend on the map.
     """
     f = cfg["ffoa"]
-    settings = FFOASettings(n_pop=f["n_pop"], n_iter=f["n_iter"], step=f["step"])
-    acc = Acceptance(**cfg["acceptance"])
     st = cfg["structured"]
-    results: dict[str, dict[Condition, IdentResult]] = {name: {} for name in cfg["identifiers"]}
-    bar = tqdm(list(data.items()), desc="conditions", unit="cond", disable=not progress)
-    for k, (cond, d) in enumerate(bar):
-        bar.set_postfix_str(f"{cond[0]:g} Hz {cond[1]:g} mm {cond[2]:g} A")
-        for j, name in enumerate(cfg["identifiers"]):
-            rng = np.random.default_rng([f["seed"], k, j])
-            if name == "hyperbolic-ffoa":
-                res = identify_hyperbolic_ffoa(d, rng, settings, acc)
-            elif name == "bouc_wen-ffoa":
-                res = identify_bouc_wen_ffoa(d, rng, settings, acc)
-            else:
-                res = identify_structured(
-                    d, acc, beta_bounds=(st["beta_min"], st["beta_max"]), n_grid=st["n_grid"]
-                )
-            results[name][cond] = res
-            if on_result:
-                on_result(res)
+    names = tuple(cfg["identifiers"])
+    if "bouc_wen-ffoa" in names and bouc_wen_native.kernel() is None:  # compiled once, before the workers
+        print(f"note: no compiled Bouc-Wen kernel, Bouc-Wen FFOA takes minutes instead of seconds "
+              f"({bouc_wen_native.unavailable_reason()})", file=sys.stderr)
+    tasks = [
+        ConditionTask(
+            k, d, names, FFOASettings(n_pop=f["n_pop"], n_iter=f["n_iter"], step=f["step"]), f["seed"],
+            Acceptance(**cfg["acceptance"]),
+            {"beta_bounds": (st["beta_min"], st["beta_max"]), "n_grid": st["n_grid"]},
+        )
+        for k, d in enumerate(data.values())
+    ]
+    if estimated_ffoa_seconds(len(tasks), names, f["n_pop"], f["n_iter"]) < min_parallel_s:
+        map_fn = None
+    results: dict[str, dict[Condition, IdentResult]] = {name: {} for name in names}
+    bar = tqdm(total=len(tasks), desc="conditions", unit="cond", disable=not progress)
+    try:
+        for task, per in zip(tasks, (map_fn or map)(identify_condition, tasks), strict=True):
+            cond = task.data.condition
+            bar.set_postfix_str(f"{cond[0]:g} Hz {cond[1]:g} mm {cond[2]:g} A")
+            bar.update(1)
+            for name, res in zip(names, per, strict=True):
+                results[name][cond] = res
+                if on_result:
+                    on_result(res)
+    finally:
+        bar.close()
     return results
 
 
@@ -246,8 +315,14 @@ def run(
     overwrite: bool = False,
     progress: bool = True,
     base: Path | None = None,
+    map_fn: MapFunction | None = None,
+    min_parallel_s: float = PARALLEL_MIN_S,
 ) -> RunResult:
-    """Full run; writes every output into ``out`` (see docs/identification.md)."""
+    """Full run; writes every output into ``out`` (see docs/identification.md).
+
+    ``map_fn``, ``min_parallel_s``: how the conditions are spread (see :func:`identify_all`;
+    default in this process).
+    """
     base = base or (cfg.path.parent if cfg.path else Path.cwd())
     records = load_records(cfg, base)
     data = group(records, cfg["fit"]["first_cycle"], cfg["fit"]["cycles"])
@@ -259,7 +334,7 @@ def run(
             for r in records:
                 f, a, i = r.condition
                 write_csv(r, stage / "data" / f"synthetic_f{f:g}Hz_A{a:g}mm_I{i:g}A_r{r.repeat}.csv")
-        results = identify_all(data, cfg, progress)
+        results = identify_all(data, cfg, progress, map_fn=map_fn, min_parallel_s=min_parallel_s)
         fits, errors = generalize(results)
         run_result = RunResult(data, results, fits, errors, synthetic)
         joint_cfg = cfg["bouc_wen_joint"]

@@ -9,6 +9,10 @@ Formats:
 
 Accelerations are in g (g = 9.80665 m/s^2). Playback interpolates linearly between
 samples and gives zero outside the record.
+
+Numbers are plain decimals (``-0.25``, ``1.5e-3``); Python-only spellings (``1_0``,
+``inf``, ``nan``) are refused, as are non-finite times, files that are not regular files
+and files larger than :data:`MAX_RECORD_BYTES`.
 """
 
 from __future__ import annotations
@@ -22,6 +26,9 @@ from pathlib import Path
 import numpy as np
 
 G = 9.80665  # m/s^2
+MAX_RECORD_BYTES = 256 * 1024 * 1024
+"""Largest record file read (a million samples take about 20 MB)."""
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
 
 class RecordError(ValueError):
@@ -52,6 +59,19 @@ def _split(line: str) -> list[str]:
     return [p for p in re.split(r"[,;\s]+", line.strip()) if p]
 
 
+class _NonFinite(ValueError):
+    """``inf``, ``nan`` and their spellings."""
+
+
+def _number(text: str) -> float:
+    """A plain decimal number; ValueError for anything else (``1_0``, ``0x10``, ...), _NonFinite for ``inf``/``nan``."""
+    if not _NUMBER.fullmatch(text):
+        if text.lower().lstrip("+-") in ("inf", "infinity", "nan"):
+            raise _NonFinite(text)
+        raise ValueError(text)
+    return float(text)
+
+
 def read_two_column(path: Path) -> Record:
     """Read a ``time_s,accel_g`` text/CSV record."""
     times: list[float] = []
@@ -64,7 +84,9 @@ def read_two_column(path: Path) -> Record:
             continue
         parts = _split(text)
         try:
-            values = [float(p) for p in parts]
+            values = [_number(p) for p in parts]
+        except _NonFinite:
+            raise RecordError(path, f"non-finite value in {text!r}", lineno) from None
         except ValueError:
             if header_allowed and not any(_is_number(p) for p in parts):
                 header_allowed = False
@@ -88,11 +110,7 @@ def read_two_column(path: Path) -> Record:
 
 
 def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+    return _NUMBER.fullmatch(text) is not None
 
 
 def read_at2(path: Path) -> Record:
@@ -105,15 +123,20 @@ def read_at2(path: Path) -> Record:
     m_dt = re.search(r"DT\s*=?\s*([0-9.Ee+-]+)", header, re.I)
     if not (m_npts and m_dt):
         raise RecordError(path, f"header line must give NPTS and DT, got {header.strip()!r}", 4)
-    npts = int(m_npts.group(1))
-    dt = float(m_dt.group(1))
-    if not dt > 0:
+    npts = int(m_npts.group(1)[:18])
+    try:
+        dt = _number(m_dt.group(1))
+    except ValueError:
+        raise RecordError(path, f"DT is not a number: {m_dt.group(1)!r}", 4) from None
+    if not (dt > 0 and math.isfinite(dt)):
         raise RecordError(path, f"DT must be positive, got {dt}", 4)
     values: list[float] = []
     for lineno, raw in enumerate(lines[4:], start=5):
         for part in _split(raw):
             try:
-                value = float(part)
+                value = _number(part)
+            except _NonFinite:
+                raise RecordError(path, f"non-finite value {part!r}", lineno) from None
             except ValueError:
                 raise RecordError(path, f"not a number: {part!r}", lineno) from None
             if not math.isfinite(value):
@@ -123,16 +146,26 @@ def read_at2(path: Path) -> Record:
         raise RecordError(path, f"header says NPTS = {npts}, found {len(values)} values")
     if npts < 2:
         raise RecordError(path, f"needs at least 2 samples, found {npts}")
-    return Record(np.arange(npts) * dt, np.array(values), str(path))
+    with np.errstate(over="ignore"):
+        times = np.arange(npts) * dt
+    if not np.isfinite(times[-1]) or not np.all(np.diff(times) > 0):
+        raise RecordError(path, f"DT = {dt:g} s gives times that are not finite and increasing "
+                                f"(last sample at {times[-1]:g} s)", 4)
+    return Record(times, np.array(values), str(path))
 
 
 def read_record(path: Path | str) -> Record:
     """Read a record; ``.at2`` files as PEER NGA, everything else as two-column text."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise RecordError(path, "no such file")
-    if path.stat().st_size == 0:
+    if not path.is_file():
+        raise RecordError(path, "not a regular file (a folder, FIFO or device)")
+    size = path.stat().st_size
+    if size == 0:
         raise RecordError(path, "the file is empty")
+    if size > MAX_RECORD_BYTES:
+        raise RecordError(path, f"{size:,} bytes, more than the {MAX_RECORD_BYTES:,} a record may have")
     if path.suffix.lower() == ".at2":
         return read_at2(path)
     return read_two_column(path)

@@ -16,6 +16,7 @@ current i, p(i) = p_slope * i + p_intercept (the paper's p^0 and p^1).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 MM = 1e-3  # metres per millimetre
@@ -173,3 +174,30 @@ def isolator_stiffness(
     beta = coeffs.beta_0 * i + coeffs.beta_1
     k0 = coeffs.k0_0 * i + coeffs.k0_1
     return n_isolators * (k0 + alpha * beta * safe_cosh(beta * x))
+
+
+def force_law(
+    coeffs: GeneralizedCoefficients = TABLE2, F0: float = 0.0, n_isolators: int = 2
+) -> Callable[[float, float, float], float]:
+    """:func:`isolator_force` with the coefficients bound: ``law(x, v, i)`` -> F [N].
+
+    The scalar fast path for a unit that evaluates the force every step: the same
+    operations in the same order (so the same numbers, bit for bit), without the
+    attribute look-ups and argument passing of the general function.
+    """
+    c0_0, c0_1, k0_0, k0_1 = coeffs.c0_0, coeffs.c0_1, coeffs.k0_0, coeffs.k0_1
+    alpha_0, alpha_1, beta_0, beta_1 = coeffs.alpha_0, coeffs.alpha_1, coeffs.beta_0, coeffs.beta_1
+    sinh, copysign, inf = math.sinh, math.copysign, math.inf
+
+    def law(x: float, v: float, i: float) -> float:
+        c0 = c0_0 * i + c0_1
+        k0 = k0_0 * i + k0_1
+        alpha = alpha_0 * i + alpha_1
+        z = (beta_0 * i + beta_1) * x
+        try:
+            s = sinh(z)
+        except OverflowError:
+            s = copysign(inf, z)
+        return n_isolators * (c0 * v + k0 * x + alpha * s + F0)
+
+    return law

@@ -3,8 +3,9 @@
 Parameters: ``record`` (path of a ``time_s,accel_g`` CSV/text or PEER ``.AT2`` file),
 ``scale`` (amplitude factor; the paper uses 0.5) and ``time_scale``. Output ``ag``
 [m/s^2] at the unit's current time: linear interpolation, zero after the record ends.
-The record is read when the unit enters initialization mode; a problem with it is logged
-as an error there and makes the first ``fmi2DoStep`` fail (pythonfmu would turn an
+The record is read when the unit enters initialization mode, and again when it leaves it
+if a parameter was set in between (FMI 2.0 allows that); a problem with it is logged as
+an error and makes the first ``fmi2DoStep`` fail (pythonfmu would turn an
 exception into fmi2Fatal, after which a host may not even free the instance).
 """
 
@@ -34,6 +35,8 @@ class GroundMotionSource(Fmi2Slave):
         self.duration = 0.0
         self._time = 0.0
         self._motion: GroundMotion | None = None
+        self._loaded: tuple | None = None  # (record, scale, time_scale) of _motion
+        self._initializing = False
         self._failed = ""
         self.fmi_units = {"scale": "1", "time_scale": "1", "ag": "m/s2", "duration": "s"}
         self.fmi_dependencies = {}
@@ -51,15 +54,33 @@ class GroundMotionSource(Fmi2Slave):
             Real("ag", description="ground acceleration", causality=Fmi2Causality.output,
                  variability=Fmi2Variability.continuous, getter=self._acceleration)
         )
+        # The master reads ag every step: a fast path for exactly that request.
+        self._ag_only = [next(v.value_reference for v in self.vars.values() if v.name == "ag")]
+
+    def get_real(self, vrs):
+        if vrs == self._ag_only:
+            return [self._acceleration()]
+        return super().get_real(vrs)
 
     def _acceleration(self) -> float:
+        if self._initializing:
+            self._load()  # parameters may still change in initialization mode
         return 0.0 if self._motion is None else self._motion.acceleration(self._time)
 
     def setup_experiment(self, start_time, stop_time, tolerance):
         self._time = start_time
 
-    def enter_initialization_mode(self):
-        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
+    def _load(self) -> None:
+        """(Re)read the record when record, scale or time_scale differ from what was loaded.
+
+        FMI 2.0 lets a host set fixed parameters in initialization mode too (ecos does), so
+        the record is read on entering it and again on leaving it if a parameter changed.
+        Problems are logged and fail the first step: an exception here would be fmi2Fatal.
+        """
+        key = (self.record, self.scale, self.time_scale)
+        if key == self._loaded:
+            return
+        self._loaded, self._failed, self._motion, self.duration = key, "", None, 0.0
         if not self.record:
             self._failed = "parameter 'record' is not set: name a record file"
         else:
@@ -70,6 +91,14 @@ class GroundMotionSource(Fmi2Slave):
                 self._failed = f"cannot use the ground-motion record: {exc}"
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
+
+    def enter_initialization_mode(self):
+        self._initializing = True
+        self._load()
+
+    def exit_initialization_mode(self):
+        self._load()
+        self._initializing = False
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:

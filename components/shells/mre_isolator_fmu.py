@@ -22,6 +22,7 @@ from mre_isolator_core import (
     IDENTIFIED_RANGE_M,
     TABLE2,
     GeneralizedCoefficients,
+    force_law,
     isolator_force,
 )
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
@@ -54,6 +55,7 @@ class MreIsolator(Fmi2Slave):
         self._outside = {"identified": False, "limit": False, "current": False}
         self._coeffs: GeneralizedCoefficients | None = None
         self._initialized = False
+        self._law = None  # force_law(...) once the parameters are fixed (after initialization)
 
         self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
         self.fmi_units.update(
@@ -86,6 +88,11 @@ class MreIsolator(Fmi2Slave):
                 getter=self._force,
             )
         )
+        # The master exchanges the same value references every step: fast paths for them.
+        vr = {v.name: v.value_reference for v in self.vars.values()}
+        self._input_attrs = {vr["x"]: "x", vr["v"]: "v", vr["i"]: "i"}
+        self._xvi = [vr["x"], vr["v"], vr["i"]]
+        self._F_only = [vr["F"]]
 
     def _current(self) -> float:
         return min(max(self.i, 0.0), self.i_max)
@@ -97,12 +104,32 @@ class MreIsolator(Fmi2Slave):
         return self._coeffs
 
     def _force(self) -> float:
+        if self._law is not None:
+            return self._law(self.x, self.v, min(max(self.i, 0.0), self.i_max))
         return isolator_force(self.x, self.v, self._current(), self._coefficients(), self.F0, self.n_isolators)
 
     def exit_initialization_mode(self):
         self._initialized = False
-        self._coefficients()
+        self._law = None
+        coeffs = self._coefficients()
         self._initialized = True
+        self._law = force_law(coeffs, self.F0, self.n_isolators)
+
+    def set_real(self, vrs, values):
+        if vrs == self._xvi:
+            self.x, self.v, self.i = values
+            return
+        attrs = self._input_attrs
+        if all(vr in attrs for vr in vrs):
+            for vr, value in zip(vrs, values, strict=True):
+                setattr(self, attrs[vr], value)
+            return
+        super().set_real(vrs, values)
+
+    def get_real(self, vrs):
+        if vrs == self._F_only:
+            return [self._force()]
+        return super().get_real(vrs)
 
     def _entered(self, key: str, outside: bool) -> bool:
         """True when a range is left now (it was inside at the previous step)."""
@@ -118,13 +145,17 @@ class MreIsolator(Fmi2Slave):
             return False
         t = current_time
         ax = abs(x)
-        if self._entered("identified", ax > self.x_identified):
+        outside = self._outside
+        identified, limit, current = ax > self.x_identified, ax > self.x_limit, not 0.0 <= i <= self.i_max
+        if identified == outside["identified"] and limit == outside["limit"] and current == outside["current"]:
+            return True  # no range entered or left: nothing to say (the usual step)
+        if self._entered("identified", identified):
             self.log(f"|x| = {ax * 1e3:.3g} mm left the identified range {self.x_identified * 1e3:.3g} mm "
                      f"at t = {t:.6g} s: the model is extrapolated", Fmi2Status.warning)
-        if self._entered("limit", ax > self.x_limit):
+        if self._entered("limit", limit):
             self.log(f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
                      Fmi2Status.warning)
-        if self._entered("current", not 0.0 <= i <= self.i_max):
+        if self._entered("current", current):
             self.log(f"current i = {i:.4g} A left [0, {self.i_max:.4g}] A at t = {t:.6g} s: clipped",
                      Fmi2Status.warning)
         return True

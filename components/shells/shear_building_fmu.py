@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import math
+import operator
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
@@ -85,6 +86,10 @@ class ShearBuilding(Fmi2Slave):
             self.fmi_units[name] = unit
             if name.startswith(("a_", "arel_")):
                 self.fmi_dependencies[name] = ("ag", "F")
+        # The master exchanges the same value references every step: fast paths for them.
+        vr = {v.name: v.value_reference for v in self.vars.values()}
+        self._ag_F = [vr["ag"], vr["F"]]
+        self._picks: list[tuple[list[int], object]] = []  # (requested value references, their picker)
 
     def _param(self, name, store, j, unit, text, attrs) -> None:
         def setter(value, store=store, j=j):
@@ -118,13 +123,34 @@ class ShearBuilding(Fmi2Slave):
             self._cache_key = key
         return self._values
 
+    def _picker(self, vrs):
+        """itemgetter of the requested outputs in output_vector (None: not all outputs), kept per request."""
+        for known, picker in self._picks:
+            if vrs == known:
+                return picker
+        index = self._output_index
+        if not all(vr in index for vr in vrs):
+            return None
+        picker = operator.itemgetter(*(index[vr] for vr in vrs)) if len(vrs) > 1 else None
+        if picker is not None and len(self._picks) < 8:
+            self._picks.append((list(vrs), picker))
+        return picker
+
     def get_real(self, vrs):
         # Fast path for outputs (one evaluation for all of them); pythonfmu's for the rest.
+        picker = self._picker(vrs)
+        if picker is not None:
+            return list(picker(self._outputs()))
         index = self._output_index
-        if all(vr in index for vr in vrs):
-            values = self._outputs()
-            return [values[index[vr]] for vr in vrs]
+        if len(vrs) == 1 and vrs[0] in index:
+            return [self._outputs()[index[vrs[0]]]]
         return super().get_real(vrs)
+
+    def set_real(self, vrs, values):
+        if vrs == self._ag_F:
+            self.ag, self.F = values
+            return
+        super().set_real(vrs, values)
 
     def exit_initialization_mode(self):
         self._building()  # logs invalid parameters; an exception here would be fmi2Fatal

@@ -83,6 +83,11 @@ class SosmCurrentController(Fmi2Slave):
                 getter=self._current,
             )
         )
+        # The master exchanges the same value references every step: fast paths for them.
+        vr = {v.name: v.value_reference for v in self.vars.values()}
+        self._input_attrs = {vr["x"]: "x", vr["v"]: "v", vr["a"]: "a"}
+        self._xva = [vr["x"], vr["v"], vr["a"]]
+        self._i_only = [vr["i"]]
 
     def _make_controller(self) -> SosmController:
         gains = SosmGains(**{attr: getattr(self, fmi_name) for fmi_name, (attr, _, _) in _GAINS.items()})
@@ -110,18 +115,35 @@ class SosmCurrentController(Fmi2Slave):
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
 
+    def set_real(self, vrs, values):
+        if vrs == self._xva:
+            self.x, self.v, self.a = values
+            return
+        attrs = self._input_attrs
+        if all(vr in attrs for vr in vrs):
+            for vr, value in zip(vrs, values, strict=True):
+                setattr(self, attrs[vr], value)
+            return
+        super().set_real(vrs, values)
+
+    def get_real(self, vrs):
+        if vrs == self._i_only:
+            return [self._current()]
+        return super().get_real(vrs)
+
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
             return False
-        if not all(math.isfinite(val) for val in (self.x, self.v, self.a)):
+        x, v, a = self.x, self.v, self.a
+        if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(a)):
             self.log(
-                f"input x = {self.x}, v = {self.v} or a = {self.a} is not finite at t = {current_time:.6g} s",
+                f"input x = {x}, v = {v} or a = {a} is not finite at t = {current_time:.6g} s",
                 Fmi2Status.error,
             )
             return False
         if self.mode == "sosm":
-            self._controller.update(self.x, self.v, self.a, step_size)
+            self._controller.update(x, v, a, step_size)
         return True
 
     # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,

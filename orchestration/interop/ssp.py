@@ -18,9 +18,10 @@ element for travels in annotations of type ``org.mre-cosim.*`` that other tools 
   input rule, recorded outputs, report roles, limits, results folder, description);
 * ``org.mre-cosim.connection`` (on a Connection): ``delayed="true"``;
 * ``org.mre-cosim.data-file`` (on an ssv:Parameter): the String value is a file of the
-  package, a path relative to the package root (``resources/kobe.csv``). A tool that
-  does not know the annotation passes the string on unchanged, which works when it runs
-  from the extracted package's root folder.
+  package, a path relative to the package root (``resources/kobe.csv``), and
+  ``<mre:DataFile kind="record"/>`` its kind (the scenario's tag: ``!record`` files are
+  checked before a run). A tool that does not know the annotation passes the string on
+  unchanged, which works when it runs from the extracted package's root folder.
 
 :func:`load_ssp` extracts a package into a folder, validates the SSD and parameter sets
 against the SSP 1.0 schemas fmpy ships, checks every reference (FMU files, parameter
@@ -29,12 +30,20 @@ variables) and returns a :class:`LoadedSsp`, a :class:`~orchestration.master.sce
 whose problems point at lines of the SSD or SSV files. ``system.resolve`` and
 ``session.run_plan`` take it like one loaded from YAML.
 
+A package is untrusted input: it is extracted within the archive limits of
+:func:`~orchestration.master.fmu_file.safe_extract` (size, entry count, no entry outside
+the folder, no links), XML entities are not expanded, values must parse and be finite,
+and the settings annotation may set only :data:`SETTINGS_KEYS` (not the units,
+connections or name, which the SSD gives), with ``results.dir`` a relative path inside
+the working folder.
+
 The command-line tool is ``orchestration/ssp.py`` (``export`` and ``check``).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -47,10 +56,10 @@ from lxml import etree
 from pydantic import ValidationError
 
 from orchestration.master.errors import Problem, ScenarioError
-from orchestration.master.fmu_file import FmuFormatError, read_description
+from orchestration.master.fmu_file import ArchiveError, FmuFormatError, read_description, safe_extract
 from orchestration.master.scenario import LoadedScenario, Scenario, validation_problems
 from orchestration.master.system import SystemPlan
-from orchestration.master.yaml_source import DataFile, Lines, apply_override
+from orchestration.master.yaml_source import DataFile, Lines, apply_override, resolved
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -65,6 +74,13 @@ CONNECTION_ANNOTATION = "org.mre-cosim.connection"
 DATA_FILE_ANNOTATION = "org.mre-cosim.data-file"
 CONNECTOR_KINDS = ("input", "output", "parameter", "calculatedParameter")
 _TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+SETTINGS_KEYS = {"format", "description", "simulation", "outputs", "results", "report", "limits"}
+"""What the settings annotation may set (the SSD gives the name, units, connections and times)."""
+SIMULATION_KEYS = {"step", "algorithm", "inputs", "order", "executor"}
+"""What it may set under ``simulation``."""
+MAX_XML_BYTES = 64 << 20
+"""Largest SSD or SSV file parsed."""
+_PARSER = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, load_dtd=False)
 
 
 def _q(prefix: str, tag: str) -> str:
@@ -168,7 +184,8 @@ def _write_units(parent: etree._Element, prefix: str, definitions: dict[str, Any
 
 def _parameter_set(plan: SystemPlan, unit: str, data_names: dict[str, str]) -> etree._Element:
     desc = plan.descriptions[unit]
-    root = etree.Element(_q("ssv", "ParameterSet"), nsmap={"ssv": SSV, "ssc": SSC}, version="1.0", name=unit)
+    root = etree.Element(_q("ssv", "ParameterSet"), nsmap={"ssv": SSV, "ssc": SSC, "mre": MRE}, version="1.0",
+                         name=unit)
     params = etree.SubElement(root, _q("ssv", "Parameters"))
     used: set[str] = set()
     for pname, value in plan.parameters[unit].items():
@@ -177,7 +194,10 @@ def _parameter_set(plan: SystemPlan, unit: str, data_names: dict[str, str]) -> e
         key = f"{unit}.{pname}"
         if key in data_names:
             etree.SubElement(node, _q("ssv", "String"), value=f"resources/{data_names[key]}")
-            _annotation(node, "ssv", DATA_FILE_ANNOTATION)
+            ann = _annotation(node, "ssv", DATA_FILE_ANNOTATION)
+            kind = plan.loaded.scenario.units[unit].parameters.get(pname)
+            if isinstance(kind, DataFile):
+                etree.SubElement(ann, _q("mre", "DataFile"), kind=kind.kind)
         elif var.type == "Real":
             attrs = {"value": repr(float(value))}
             if var.unit:
@@ -330,8 +350,12 @@ class _Reader:
         path = self.member(member)
         if path is None:
             return None
+        if path.stat().st_size > MAX_XML_BYTES:
+            self.problems.append(Problem(f"{path.stat().st_size:,} bytes, more than the {MAX_XML_BYTES:,} an SSP "
+                                         "XML file may have", key, self.label(member)))
+            return None
         try:
-            root = etree.parse(str(path)).getroot()
+            root = etree.parse(str(path), _PARSER).getroot()
         except etree.XMLSyntaxError as exc:
             self.problems.append(Problem(f"not well-formed XML: {exc}", key, self.label(member), exc.lineno))
             return None
@@ -347,17 +371,32 @@ def _annotation_of(node: etree._Element, prefix: str, kind: str) -> etree._Eleme
     return None
 
 
+def _number(text: str | None, integer: bool = False) -> float | int:
+    """A finite xs:double (or an xs:int); ValueError naming the text otherwise."""
+    raw = (text or "").strip()
+    try:
+        value = int(raw) if integer else float(raw)
+    except (ValueError, OverflowError):
+        raise ValueError(f"{text!r} is not {'an integer' if integer else 'a number'}") from None
+    if (integer and abs(value) > 2**31 - 1) or (not integer and not math.isfinite(value)):
+        raise ValueError(f"{text!r} is out of range" if integer else f"{text!r} is not finite")
+    return value
+
+
 def _typed_value(node: etree._Element) -> tuple[str, Any] | None:
+    """(kind, value) of an ssv:Parameter; ValueError for a value that does not parse."""
     for kind in (*_TYPES, "Binary"):
         value = node.find(f"ssv:{kind}", NS)
         if value is None:
             continue
         text = value.get("value", "")
         if kind == "Real":
-            return kind, float(text)
-        if kind == "Integer":
-            return kind, int(text)
+            return kind, _number(text)
+        if kind in ("Integer", "Enumeration"):
+            return kind, (_number(text, integer=True) if kind == "Integer" else None)
         if kind == "Boolean":
+            if text.strip() not in ("true", "false", "1", "0"):
+                raise ValueError(f"{text!r} is not a boolean (true, false, 1 or 0)")
             return kind, text.strip() in ("true", "1")
         if kind == "String":
             return kind, text
@@ -399,20 +438,26 @@ def _read_parameters(reader: _Reader, unit: str, comp: etree._Element) -> dict[s
                 name = name[len(prefix):]
             pkey = ("units", unit, "parameters", name)
             reader.at(pkey, member, p)
-            typed = _typed_value(p)
+            try:
+                typed = _typed_value(p)
+            except ValueError as exc:
+                reader.problem(f"component '{unit}', parameter '{name}': {exc}", ".".join(pkey), member, p)
+                continue
             if typed is None or typed[1] is None:
                 kind = "no value" if typed is None else f"a {typed[0]} value"
                 reader.problem(f"component '{unit}', parameter '{name}': {kind} is not supported",
                                ".".join(pkey), member, p)
                 continue
             kind, value = typed
-            if kind == "String" and _annotation_of(p, "ssv", DATA_FILE_ANNOTATION) is not None:
+            ann = _annotation_of(p, "ssv", DATA_FILE_ANNOTATION) if kind == "String" else None
+            if ann is not None:
                 path = reader.member(value)
                 if path is None:
                     reader.problem(f"component '{unit}', parameter '{name}': data file '{value}' is not in the package",
                                    ".".join(pkey), member, p)
                     continue
-                value = DataFile(str(path))
+                tag = ann.find("mre:DataFile", NS)
+                value = DataFile(str(path), "record" if tag is not None and tag.get("kind") == "record" else "data")
             params[name] = value
     return params
 
@@ -428,7 +473,10 @@ def _read_settings(reader: _Reader, ssd: etree._Element) -> tuple[dict[str, Any]
     reader.at(("simulation",), SSD_FILE, experiment)
     for attr, key in (("startTime", "start_time"), ("stopTime", "stop_time")):
         if experiment.get(attr) is not None:
-            simulation[key] = float(experiment.get(attr))
+            try:
+                simulation[key] = _number(experiment.get(attr))
+            except ValueError as exc:
+                reader.problem(f"DefaultExperiment {attr}: {exc}", f"simulation.{key}", SSD_FILE, experiment)
     ann = _annotation_of(experiment, "ssd", SETTINGS_ANNOTATION)
     node = None if ann is None else ann.find("mre:Settings", NS)
     if node is not None:
@@ -440,10 +488,37 @@ def _read_settings(reader: _Reader, ssd: etree._Element) -> tuple[dict[str, Any]
         if not isinstance(settings, dict) or not isinstance(settings.get("simulation", {}), dict):
             reader.problem(f"the {SETTINGS_ANNOTATION} annotation must be a JSON object", "simulation", SSD_FILE, node)
             settings = {}
+        settings = _allowed_settings(reader, settings, node)
         for key, value in (settings.pop("simulation", None) or {}).items():
             if value is not None:
                 simulation[key] = value
     return simulation, settings
+
+
+def _allowed_settings(reader: _Reader, settings: dict[str, Any], node: etree._Element) -> dict[str, Any]:
+    """The settings the annotation may set; a problem for every other key and for a results folder outside."""
+    out = {}
+    for key, value in settings.items():
+        if key not in SETTINGS_KEYS:
+            reader.problem(f"the {SETTINGS_ANNOTATION} annotation may not set '{key}' (it may set: "
+                           f"{', '.join(sorted(SETTINGS_KEYS - {'format'}))})", key, SSD_FILE, node)
+            continue
+        out[key] = value
+    for key in list(out.get("simulation") or {}):
+        if key not in SIMULATION_KEYS:
+            reader.problem(f"the {SETTINGS_ANNOTATION} annotation may not set simulation.{key} (it may set: "
+                           f"{', '.join(sorted(SIMULATION_KEYS))})", f"simulation.{key}", SSD_FILE, node)
+            del out["simulation"][key]
+    results = out.get("results")
+    folder = results.get("dir") if isinstance(results, dict) else None
+    if isinstance(folder, str):
+        parts = PurePosixPath(folder.replace("\\", "/")).parts
+        if not parts or PurePosixPath(folder).is_absolute() or folder.startswith(("~", "\\")) or ".." in parts \
+                or ":" in folder:
+            reader.problem(f"results.dir {folder!r} must be a relative folder inside the working folder "
+                           "(no '..', not absolute)", "results.dir", SSD_FILE, node)
+            del out["results"]
+    return out
 
 
 def _read_system(reader: _Reader, ssd: etree._Element) -> dict[str, Any]:
@@ -515,18 +590,25 @@ def load_ssp(path: Path | str, overrides: tuple[str, ...] = (), workdir: Path | 
     ``workdir``: folder to extract into (kept); by default a temporary folder deleted with
     the returned object (or by its ``cleanup()``).
     """
-    path = Path(path).resolve()
+    path = resolved(path)
     if not path.is_file():
-        raise ScenarioError(Problem("no such SSP file", "", str(path)))
+        raise ScenarioError(Problem("no such SSP file" if not path.exists() else "not a regular file", "", str(path)))
     if not zipfile.is_zipfile(path):
         raise ScenarioError(Problem("not an SSP package (not a zip archive)", "", str(path)))
     owned = workdir is None
     target = Path(tempfile.mkdtemp(prefix="mre_ssp_")) if owned else Path(workdir)
     try:
-        with zipfile.ZipFile(path) as z:
-            if SSD_FILE not in z.namelist():
-                raise ScenarioError(Problem(f"not an SSP package (no {SSD_FILE} at its root)", "", str(path)))
-            z.extractall(target)
+        try:
+            with zipfile.ZipFile(path) as z:
+                if SSD_FILE not in z.namelist():
+                    raise ScenarioError(Problem(f"not an SSP package (no {SSD_FILE} at its root)", "", str(path)))
+                safe_extract(z, target, path)
+        except ArchiveError as exc:
+            raise ScenarioError(Problem(str(exc))) from None
+        except (zipfile.BadZipFile, EOFError, NotImplementedError, ValueError) as exc:
+            raise ScenarioError(Problem(f"damaged SSP package: {exc}", "", str(path))) from None
+        except OSError as exc:
+            raise ScenarioError(Problem(f"cannot extract the package: {exc.strerror or exc}", "", str(path))) from None
         reader = _Reader(path, target.resolve())
         ssd = reader.parse(SSD_FILE, "SystemStructureDescription.xsd", "")
         if ssd is None or reader.problems:

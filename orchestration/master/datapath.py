@@ -41,7 +41,10 @@ def find_data_file(
             tried.append(relative_to / candidate)
     for path in tried:
         if path.is_file():
-            return path.resolve()
+            try:
+                return path.resolve()
+            except (RuntimeError, OSError):
+                return Path(os.path.abspath(path))
     listing = "; ".join(str(p) for p in tried)
     raise FileNotFoundError(
         f"data file {name!r} not found (searched: {listing}). "

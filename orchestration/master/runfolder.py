@@ -13,8 +13,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 
 class RunFolderExists(FileExistsError):
     """The chosen output folder exists and is not empty (or another run has just claimed it)."""
@@ -68,6 +66,16 @@ def _why(exc: OSError, path: Path) -> str:
     return where + (exc.strerror or str(exc))
 
 
+def _missing_ancestors(path: Path) -> list[Path]:
+    """The folders of ``path`` (itself included) that do not exist yet, deepest first."""
+    missing = []
+    for folder in (path, *path.parents):
+        if os.path.lexists(folder):
+            break
+        missing.append(folder)
+    return missing
+
+
 def _remove_created(folder: Path, created: bool) -> None:
     if created:
         try:
@@ -95,24 +103,36 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     """
     if explicit is not None:
         explicit = Path(explicit)
+        parents = _missing_ancestors(explicit.parent)
         try:
-            explicit.parent.mkdir(parents=True, exist_ok=True)
             try:
-                explicit.mkdir()
-                created = True
-            except FileExistsError:
-                created = False
-                if not explicit.is_dir() or any(explicit.iterdir()):
-                    raise RunFolderExists(
-                        f"{explicit} exists and is not empty: choose another --out (nothing was written)"
-                    ) from None
+                explicit.parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    explicit.mkdir()
+                    created = True
+                except FileExistsError:
+                    created = False
+                    if not explicit.is_dir():
+                        raise RunFolderUnusable(f"{explicit} is a file, not a folder: choose another --out "
+                                                "(nothing was written)") from None
+                    if any(explicit.iterdir()):
+                        raise RunFolderExists(
+                            f"{explicit} exists and is not empty: choose another --out (nothing was written)"
+                        ) from None
+            except RunFolderExists:
+                raise
+            except OSError as exc:
+                raise RunFolderUnusable(f"{explicit}: cannot create the run folder ({_why(exc, explicit)}); "
+                                        "choose another --out (nothing was written)") from None
+            _claim(explicit, created)
         except RunFolderExists:
+            for folder in parents:  # deepest first; only empty folders this run created
+                _remove_created(folder, True)
             raise
-        except OSError as exc:
-            raise RunFolderUnusable(f"{explicit}: cannot create the run folder ({_why(exc, explicit)}); "
-                                    "choose another --out (nothing was written)") from None
-        _claim(explicit, created)
         return explicit
+    if not name or any(c in name for c in "/\\\x00") or name.startswith("."):
+        raise RunFolderUnusable(f"{name!r} cannot name a run folder inside {base}: a plain name is needed "
+                                "(no '/' or '\\', not starting with '.'); nothing was written")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     try:
         base.mkdir(parents=True, exist_ok=True)
@@ -160,19 +180,6 @@ def write_json(path: Path, data: Any) -> None:
 def write_text(path: Path, text: str) -> None:
     """Write text atomically."""
     _atomic(path, lambda f: f.write(text))
-
-
-def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray) -> None:
-    """CSV with a ``time`` column first, then one column per variable (12 significant digits)."""
-    row = ",".join(["%.12g"] * (len(names) + 1)) + "\n"
-
-    def write(f):
-        f.write(",".join(["time", *names]) + "\n")
-        block = np.column_stack([time, data]).tolist()
-        for start in range(0, len(block), 20000):
-            f.write("".join(row % tuple(r) for r in block[start : start + 20000]))
-
-    _atomic(path, write)
 
 
 def sha256(path: Path) -> str:

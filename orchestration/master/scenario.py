@@ -12,20 +12,39 @@ need the FMUs' model descriptions are in :mod:`orchestration.master.system`.
 from __future__ import annotations
 
 import difflib
+import math
+import os
 import re
+import shutil
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.master.errors import Problem, ScenarioError
-from orchestration.master.yaml_source import DataFile, Lines, apply_override, dotted, load_tree, locate
+from orchestration.master.yaml_source import DataFile, Lines, apply_override, dotted, load_tree, locate, resolved
 
 _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _VARIABLE = re.compile(rf"^\s*({_NAME})\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\s*$")
 _CONNECTION = re.compile(r"^\s*(\S+)\s*->\s*(\S+)\s*$")
 
 ParamValue = bool | int | float | str | DataFile
+Number = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+"""A finite number (an integer is taken as a float); booleans and strings are refused, not converted."""
+
+_PLAIN_NAME = re.compile(r"[^./\\\x00-\x1f\x7f][^/\\\x00-\x1f\x7f]{0,99}")
+MAX_STEPS = 10**12
+"""Most communication steps a scenario may have (a guard against overflow; memory refuses far fewer)."""
+MEMORY_ENV = "MRE_COSIM_MAX_RESULT_MB"
+"""Environment variable: the disk space a run's results may take [MiB] (default: the free space where they go)."""
+
+
+def plain_name(text: str) -> str:
+    """ValueError unless ``text`` can name a folder inside another: no path separator, no leading dot."""
+    if not isinstance(text, str) or not _PLAIN_NAME.fullmatch(text):
+        raise ValueError(f"{text!r} must be a plain name (no '/' or '\\', not starting with '.', no control "
+                         "characters, at most 100 characters): it names the run folder")
+    return text
 
 
 class _Strict(BaseModel):
@@ -54,7 +73,7 @@ class Connection(_Strict):
 
     source: VariableRef
     target: VariableRef
-    delayed: bool = False
+    delayed: StrictBool = False
 
     def __str__(self) -> str:
         return f"{self.source} -> {self.target}" + (" (delayed)" if self.delayed else "")
@@ -73,15 +92,17 @@ class UnitSpec(_Strict):
             for key, item in value.items():
                 if not isinstance(item, bool | int | float | str | DataFile):
                     raise ValueError(f"parameter {key!r} must be a number, boolean or string, got {item!r}")
+                if isinstance(item, float) and not math.isfinite(item):
+                    raise ValueError(f"parameter {key!r} must be a finite number, got {item!r}")
         return value
 
 
 class SimulationSpec(_Strict):
     """Time grid and coupling algorithm."""
 
-    step: float = Field(gt=0, description="communication step [s]")
-    stop_time: float = Field(description="[s]")
-    start_time: float = Field(0.0, description="[s]")
+    step: Number = Field(gt=0, description="communication step [s]")
+    stop_time: Number = Field(description="[s]")
+    start_time: Number = Field(0.0, description="[s]")
     algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
     inputs: Literal["step-mean", "hold"] = Field(
         "step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
@@ -96,9 +117,16 @@ class SimulationSpec(_Strict):
         span = self.stop_time - self.start_time
         if span <= 0:
             raise ValueError(f"stop_time ({self.stop_time} s) must be after start_time ({self.start_time} s)")
+        if not math.isfinite(span):
+            raise ValueError(f"the span from start_time to stop_time ({self.start_time} s to {self.stop_time} s) "
+                             "is too large to represent")
         if self.step > span:
             raise ValueError(f"step ({self.step} s) is larger than the simulated span ({span} s)")
-        n = round(span / self.step)
+        ratio = span / self.step
+        if not ratio <= MAX_STEPS:
+            raise ValueError(f"{span:g} s in steps of {self.step:g} s is {ratio:.3g} steps, more than "
+                             f"{MAX_STEPS:.0e}: lengthen step or shorten the span")
+        n = round(ratio)
         if abs(n * self.step - span) > 1e-9 * max(1.0, span):
             raise ValueError(
                 f"the span {span} s is not a whole number of steps of {self.step} s "
@@ -117,6 +145,13 @@ class ResultsSpec(_Strict):
 
     dir: str = "runs"
 
+    @field_validator("dir")
+    @classmethod
+    def _dir(cls, value: str) -> str:
+        if not value.strip() or "\x00" in value:
+            raise ValueError("must name a folder")
+        return value
+
 
 class ReportSpec(_Strict):
     """Roles of recorded variables for the run summary and plots (all optional)."""
@@ -126,8 +161,32 @@ class ReportSpec(_Strict):
     floor_accelerations: list[VariableRef] = Field(default_factory=list)
     current: VariableRef | None = None
     isolator_force: VariableRef | None = None
+    ground_acceleration: VariableRef | None = None
+    caption: str = Field("", description="what was run, for every figure: {unit.param} is filled with the "
+                                         "run's value (e.g. '{ground.record} x{ground.scale}')")
+    labels: dict[str, str] = Field(default_factory=dict, description="readable names: 'unit.variable' or "
+                                                                      "'unit.param=value' -> text")
+    displacement_limits: dict[str, Number | str] = Field(
+        default_factory=dict, description="named limits [m] drawn on the hysteresis plot: a value or 'unit.param'")
 
-    @field_validator("base_displacement", "current", "isolator_force", mode="before")
+    @field_validator("labels")
+    @classmethod
+    def _label_keys(cls, value: dict[str, str]) -> dict[str, str]:
+        for key in value:
+            VariableRef.parse(key.split("=", 1)[0])
+        return value
+
+    @field_validator("displacement_limits")
+    @classmethod
+    def _limit_refs(cls, value: dict[str, Number | str]) -> dict[str, Number | str]:
+        for label, ref in value.items():
+            if isinstance(ref, str):
+                VariableRef.parse(ref)
+            elif not ref > 0:
+                raise ValueError(f"displacement limit {label!r} must be positive, got {ref}")
+        return value
+
+    @field_validator("base_displacement", "current", "isolator_force", "ground_acceleration", mode="before")
     @classmethod
     def _one(cls, value: Any) -> Any:
         return VariableRef.parse(value) if isinstance(value, str) else value
@@ -141,14 +200,14 @@ class ReportSpec(_Strict):
 
     def variables(self) -> list[VariableRef]:
         """Every variable the report needs."""
-        single = [self.base_displacement, self.current, self.isolator_force]
+        single = [self.base_displacement, self.current, self.isolator_force, self.ground_acceleration]
         return [v for v in single if v is not None] + list(self.drifts) + list(self.floor_accelerations)
 
 
 class LimitsSpec(_Strict):
     """Physical plausibility limits: a run stops when a watched variable leaves them."""
 
-    max_abs: dict[str, float] = Field(default_factory=dict)
+    max_abs: dict[str, Number] = Field(default_factory=dict)
 
     @field_validator("max_abs")
     @classmethod
@@ -172,6 +231,11 @@ class Scenario(_Strict):
     results: ResultsSpec = Field(default_factory=ResultsSpec)
     report: ReportSpec = Field(default_factory=ReportSpec)
     limits: LimitsSpec = Field(default_factory=LimitsSpec)
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, value: str) -> str:
+        return plain_name(value)
 
     @field_validator("units")
     @classmethod
@@ -237,7 +301,7 @@ class LoadedScenario:
     def fmu_path(self, unit: str) -> Path:
         """Absolute FMU path of a unit (relative paths: see :meth:`base_dir`)."""
         fmu = Path(self.scenario.units[unit].fmu).expanduser()
-        return fmu if fmu.is_absolute() else (self.base_dir("units", unit, "fmu") / fmu).resolve()
+        return fmu if fmu.is_absolute() else resolved(self.base_dir("units", unit, "fmu") / fmu)
 
 
 def _model_at(model: type[BaseModel] | None, key: tuple[Any, ...]) -> type[BaseModel] | None:
@@ -292,9 +356,9 @@ def validation_problems(
 
 def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedScenario:
     """Read, merge, override and validate a scenario file. Raises ScenarioError with all problems."""
-    path = Path(path).resolve()
+    path = resolved(path)
     data, lines = load_tree(path)
-    data.setdefault("name", path.stem)
+    data.setdefault("name", _name_from(path.stem))
     units = data.get("units")
     unit_names = set(units) if isinstance(units, dict) else set()
     for assignment in overrides:
@@ -304,3 +368,54 @@ def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedSc
     except ValidationError as exc:
         raise ScenarioError(validation_problems(exc, lines, path, Scenario)) from None
     return LoadedScenario(scenario, path, lines, data)
+
+
+def _name_from(stem: str) -> str:
+    """A plain run-folder name made from a file name (leading dots and control characters dropped)."""
+    name = re.sub(r"[\x00-\x1f\x7f\\]", "_", stem).lstrip(".")[:100]
+    return name or "scenario"
+
+
+CSV_BYTES_PER_VALUE = 20  # the most '%.12g' and its separator take ("-1.23456789012e-100,")
+
+
+def _free_bytes(folder: Path) -> int:
+    """Free disk space [B] where ``folder`` is or would be created (its nearest existing ancestor)."""
+    probe = Path(folder).absolute()
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    try:
+        return shutil.disk_usage(probe).free
+    except OSError:
+        return 2**62  # unknown: let the write itself report a full disk
+
+
+def result_size_problem(simulation: SimulationSpec, n_recorded: int, results_dir: Path) -> str | None:
+    """Why a run's results would not fit on disk (checked before any folder is created), or None.
+
+    Large results are recorded into a memory-mapped file in the run folder (memory does not
+    grow with the run's length, :class:`~orchestration.master.recorder.Recorder`), then written
+    as ``timeseries.csv``: at most 8 + 20 bytes per sample and column. The budget is the free
+    space where the results go, or ``MRE_COSIM_MAX_RESULT_MB``.
+    """
+    rows, cols = simulation.n_steps + 1, n_recorded + 1
+    need = rows * cols * (8 + CSV_BYTES_PER_VALUE)
+    text = os.environ.get(MEMORY_ENV, "").strip()
+    try:
+        budget = int(float(text) * 2**20) if text else _free_bytes(results_dir)
+    except (ValueError, OverflowError):
+        budget = _free_bytes(results_dir)
+    if need <= budget:
+        return None
+    source = MEMORY_ENV if text else f"the free space in {results_dir}; {MEMORY_ENV} sets another budget"
+    return (f"the run would record {rows:,} samples x {cols} columns (time and {n_recorded} variables), up to "
+            f"{_bytes(need)} on disk, more than {_bytes(budget)} ({source}): shorten simulation.stop_time, "
+            "lengthen simulation.step, or record fewer variables (outputs: [unit.variable, ...])")
+
+
+def _bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} PiB"

@@ -19,15 +19,14 @@ from orchestration.master.errors import SimulationError
 from orchestration.master.execution import ExecutionResult, StopRequest, execute
 from orchestration.master.fmi_status import LogRecord
 from orchestration.master.monitor import Monitor
-from orchestration.master.recorder import Recorder
-from orchestration.master.report import plot, summarize
+from orchestration.master.recorder import Recorder, write_timeseries
+from orchestration.master.report import RunDescription, caption, plot, summarize
 from orchestration.master.runfolder import (
     new_run_folder,
     package_versions,
     run_id,
     sha256,
     write_json,
-    write_timeseries,
 )
 from orchestration.master.system import SystemPlan
 from orchestration.master.yaml_source import DataFile
@@ -52,6 +51,31 @@ def _plain(data: Any) -> Any:
     if isinstance(data, DataFile):
         return str(data)
     return data
+
+
+def _typed(fmi_type: str, start: Any) -> Any:
+    """A declared start value (text in the model description) as a Python value of its type."""
+    try:
+        if fmi_type.startswith(("Real", "Float")):
+            return float(start)
+        if fmi_type.startswith(("Int", "UInt", "Enumeration")):
+            return int(start)
+    except (TypeError, ValueError):
+        return start
+    if fmi_type == "Boolean":
+        return str(start).lower() in ("true", "1")
+    return start
+
+
+def describe_run(plan: SystemPlan) -> RunDescription:
+    """Each unit's parameter values as the run uses them (set in the scenario, else declared), for captions."""
+    values = {}
+    for unit, desc in plan.descriptions.items():
+        declared = {v.name: _typed(v.type, v.start) for v in desc.variables.values()
+                    if v.causality == "parameter" and v.start is not None}
+        values[unit] = declared | plan.parameters.get(unit, {})
+    names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
+    return RunDescription(values, names, dict(plan.loaded.scenario.report.labels))
 
 
 def run_plan(
@@ -88,7 +112,7 @@ def run_plan(
 
     units = plan.create_units(on_log)
     algorithm = plan.create_algorithm(units)
-    recorder = Recorder(algorithm, plan.recorded, sc.simulation.n_steps)
+    recorder = Recorder(algorithm, plan.recorded, sc.simulation.n_steps, spill_dir=folder)
     monitor = Monitor(algorithm, plan.limits)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     result = execute(algorithm, sc.simulation.start_time, sc.simulation.stop_time, sc.simulation.step,
@@ -118,13 +142,15 @@ def run_plan(
             doc.update(complete=False, status=result.status)
         summary["error"] = str(result.error)
 
+    described = describe_run(plan)
     save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
                                                     recorder.data[: recorder.count]))
     if plots and recorder.count > 1:
-        save("plots (*.png)", lambda: plot(recorder, sc.report, folder, sc.name))
+        save("plots (*.png)", lambda: plot(recorder, sc.report, folder, sc.name, described))
     run = run_id(folder)
     summary: dict[str, Any] = {
         "scenario": sc.name,
+        "caption": caption(sc.report, described, sc.name),
         "complete": result.complete,
         "status": result.status,
         "error": str(result.error) if result.error else None,
@@ -144,6 +170,7 @@ def run_plan(
         "run_id": run,
         "started": started,
         "command": sys.argv,
+        **({"provenance": plan.provenance} if plan.provenance else {}),
         "scenario_file": str(plan.loaded.path),
         "scenario": _plain(plan.loaded.raw),
         "fmus": {name: {"path": str(p), "sha256": sha256(p)} for name, p in plan.fmu_paths.items()},

@@ -4,10 +4,18 @@
 files through the data path, and checks parameters, connections, recorded variables,
 limits and loops against the descriptions. All problems are collected into one
 ScenarioError, each with the file, line and key it comes from.
+
+Before anything runs it also checks that every FMU holds a library for this platform
+that can be loaded (:func:`~orchestration.master.fmu_file.check_binary`), that a String
+parameter whose description starts with its quoted choices (``'sosm' or 'passive'``) is
+set to one of them, and that the recorded results fit on disk
+(:func:`~orchestration.master.scenario.result_size_problem`).
 """
 
 from __future__ import annotations
 
+import difflib
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,12 +26,33 @@ from orchestration.master.datapath import find_data_file
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.fmi_status import LogRecord
 from orchestration.master.fmu3_unit import Fmu3Unit
-from orchestration.master.fmu_file import FmuFormatError, read_description
+from orchestration.master.fmu_file import FmuFormatError, check_binary, read_description
 from orchestration.master.fmu_unit import FmuUnit
 from orchestration.master.graph import AlgebraicLoopError, Link, Port, propagation_order
-from orchestration.master.scenario import LoadedScenario, VariableRef
+from orchestration.master.report import PLACEHOLDER
+from orchestration.master.scenario import LoadedScenario, Scenario, VariableRef, result_size_problem
 from orchestration.master.unit import UnitDescription
 from orchestration.master.yaml_source import DataFile
+
+_QUOTED = r"""(?:'[^'\n]*'|"[^"\n]*")"""
+_CHOICES = re.compile(rf"^\s*(?:one of:?\s*)?({_QUOTED}(?:\s*(?:,|\bor\b|\|)\s*{_QUOTED})+)")
+
+
+def declared_choices(description: str) -> tuple[str, ...]:
+    """The values a String variable accepts when its description starts with them quoted, e.g.
+    ``'sosm' or 'passive' (constant current)``; empty when it declares none."""
+    m = _CHOICES.match(description or "")
+    return tuple(q[1:-1] for q in re.findall(_QUOTED, m.group(1))) if m else ()
+
+
+def _choice_problem(var: Any, value: Any) -> str | None:
+    """Why a String parameter's value is not one of its declared choices, or None."""
+    choices = declared_choices(var.description) if var.type == "String" else ()
+    if not choices or value in choices:
+        return None
+    close = difflib.get_close_matches(str(value), choices, n=1, cutoff=0.6)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return f"{var.name} = {value!r} is not one of {', '.join(repr(c) for c in choices)}{hint}"
 
 
 def _compatible(fmi_type: str, value: Any) -> bool:
@@ -49,6 +78,7 @@ class SystemPlan:
     recorded: list[Port]
     limits: dict[Port, float]
     data_files: dict[str, Path] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)  # what the application says made the run
 
     def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit | Fmu3Unit]:
         """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit."""
@@ -69,12 +99,14 @@ class ResolveHooks:
     ``prepare_fmu(path)`` may build or refresh an FMU before its description is read and
     returns a problem text or None; ``data_checks[kind](path)`` checks a data file named
     with ``!kind`` and returns a problem text or None; ``default_data_dirs`` are searched
-    after ``--data-dir`` and ``MRE_COSIM_DATA``.
+    after ``--data-dir`` and ``MRE_COSIM_DATA``; ``provenance()`` says what made the run
+    (package version, source revision) for the manifest.
     """
 
     prepare_fmu: Callable[[Path], str | None] | None = None
     data_checks: Mapping[str, Callable[[Path], str | None]] = field(default_factory=dict)
     default_data_dirs: tuple[Path, ...] = ()
+    provenance: Callable[[], dict[str, Any]] | None = None
 
 
 def _prepare(path: Path, hooks: ResolveHooks) -> str | None:
@@ -96,14 +128,19 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
     for name in sc.units:
         path = loaded.fmu_path(name)
         fmu_paths[name] = path
-        text = _prepare(path, hooks)
+        looping = path.is_symlink() and not path.exists()
+        text = f"{path}: a symbolic link to nothing (dangling or looping)" if looping else _prepare(path, hooks)
         if text is not None:
             problems.append(loaded.problem(text, "units", name, "fmu"))
             continue
         try:
-            descriptions[name], _ = read_description(path, name)
+            descriptions[name], md = read_description(path, name)
         except FmuFormatError as exc:
             problems.append(loaded.problem(str(exc), "units", name, "fmu"))
+            continue
+        text = check_binary(path, md)
+        if text is not None:
+            problems.append(loaded.problem(text, "units", name, "fmu"))
 
     for name, spec in sc.units.items():
         parameters[name] = {}
@@ -139,6 +176,10 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                 unit = f" [{var.unit}]" if var.unit else ""
                 problems.append(loaded.problem(f"{pname!r} is {var.type}{unit}, got {value!r}",
                                                "units", name, "parameters", pname))
+                continue
+            text = _choice_problem(var, value)
+            if text is not None:
+                problems.append(loaded.problem(text, "units", name, "parameters", pname))
                 continue
             parameters[name][pname] = value
 
@@ -192,6 +233,12 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                 problems.append(loaded.problem(f"input {var.name!r} is not connected and has no start value",
                                                "units", name))
 
+    for where, text in _report_templates(sc):
+        for m in PLACEHOLDER.finditer(text):
+            if m.group(1) not in sc.units:
+                problems.append(loaded.problem(f"{{{m.group(1)}.{m.group(2)}}}: no unit named {m.group(1)!r} "
+                                               f"(units: {', '.join(sc.units)})", "report", *where))
+
     recorded: list[Port] = []
     if sc.outputs == "all":
         recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs()]
@@ -221,6 +268,22 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         except AlgebraicLoopError as exc:
             problems.append(loaded.problem(str(exc), "connections"))
 
+    text = result_size_problem(sc.simulation, len(recorded), Path(sc.results.dir))
+    if text is not None:
+        problems.append(loaded.problem(text, "simulation", "stop_time"))
+
     if problems:
         raise ScenarioError(problems)
-    return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files)
+    provenance = hooks.provenance() if hooks.provenance is not None else {}
+    return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files, provenance)
+
+
+def _report_templates(sc: Scenario) -> list[tuple[tuple[str, ...], str]]:
+    """Every text in ``report`` that may name ``{unit.param}`` or ``unit.param``, with its key."""
+    spec = sc.report
+    out: list[tuple[tuple[str, ...], str]] = [(("caption",), spec.caption)]
+    for key, text in spec.labels.items():
+        out += [(("labels", key), text), (("labels", key), "{" + key.split("=", 1)[0] + "}")]
+    out += [(("displacement_limits", label), "{" + ref + "}") for label, ref in spec.displacement_limits.items()
+            if isinstance(ref, str)]
+    return out

@@ -1,21 +1,24 @@
 """The case study behind ``python orchestration/study.py scenarios/case_study.yaml``.
 
-Every record x strategy runs as a co-simulation through the master, each in its own
-process, and the study folder gets ``peaks.csv``, ``indices.csv``, ``sweep.csv``,
-``reference.csv``, ``figures/``, ``report.md``, ``report.html``, ``study.json``, the run
-folders (``runs/``) and the processes' logs (``logs/``). A study folder is never
-overwritten; every file is written atomically. ``--report DIR`` regenerates the tables,
-figures and report of an existing study folder from its data.
+Every record x strategy runs as a co-simulation through the master, on the Dask engine
+(:mod:`orchestration.studies.engine`: a local cluster, or ``--scheduler ADDRESS``), each in
+a child process of a worker; the current sweeps and Radau references run in the workers.
+The study folder gets ``peaks.csv``, ``indices.csv``, ``sweep.csv``, ``reference.csv``,
+``figures/``, ``report.md``, ``report.html``, ``study.json``, the run folders (``runs/``,
+sent back by the workers), the jobs' output (``logs/``) and every job's result under its
+content key (``jobs/``). A study folder is never overwritten; every file is written
+atomically. ``--resume DIR`` finishes an interrupted study (only the jobs whose results are
+missing run); ``--report DIR`` regenerates the tables, figures and report from its data.
 
 Exit codes: 0 every job succeeded; 1 some jobs failed or the study was interrupted (the
-report lists them; the other results are complete); 2 configuration error (nothing written).
+report lists them; the other results are complete); 2 configuration error or no usable
+Dask cluster (nothing written).
 """
 
 from __future__ import annotations
 
 import argparse
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -24,12 +27,15 @@ from typing import Any
 from components.physics.shear_building_core import BuildingParams
 from orchestration.master.errors import ScenarioError
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
-from orchestration.project import PROJECT_DIR as PROJECT
 from orchestration.project import plan_scenario, require_kind
-from orchestration.studies.config import UNCONTROLLED, LoadedStudy, load_study
-from orchestration.studies.jobs import cosim_job, reference_job, sweep_job
+from orchestration.provenance import provenance
+from orchestration.studies.config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.studies.engine import Engine, EngineUnavailable, JobResult, StudyBar, scheduler_address
+from orchestration.studies.jobs import OUTPUTS_OVERRIDE, cosim_job, reference_job, sweep_job, write_run_files
+from orchestration.studies.portable import PortablePlan, file_bytes, job_key, plan_content, portable
 from orchestration.studies.report import read_study, write_outputs
-from orchestration.studies.runner import Job, JobResult, run_jobs
+from orchestration.studies.store import ResultStore
+from orchestration.studies.strategies import strategy_overrides
 from orchestration.studies.tuning import NotMonolithic, read_gains, run_overrides, system_setup
 
 
@@ -41,34 +47,34 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="override a study key, e.g. --set 'overrides=[simulation.stop_time=5]' or "
                              "--set 'strategies=[passive-off, sosm]'")
     parser.add_argument("--out", type=Path, help="study folder to create (must not exist or be empty)")
-    parser.add_argument("--workers", type=int, help="parallel processes (default: the study's 'workers')")
+    add_engine_arguments(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
+    parser.add_argument("--resume", type=Path, metavar="DIR",
+                        help="finish an interrupted study folder: compute only the jobs whose results are missing")
     args = parser.parse_args(argv)
-    if (args.study is None) == (args.report is None):
-        parser.error("give a study file, or --report DIR")
+    if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
+        parser.error("give a study file, or --report DIR, or --resume DIR")
     return args
 
 
-def _git(*args: str) -> str:
-    try:
-        return subprocess.run(["git", *args], cwd=PROJECT, capture_output=True, text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ""
+def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
+    """--scheduler and --workers, shared by the study tools."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786; default: the environment "
+                             "variable DASK_SCHEDULER_ADDRESS, else a local cluster)")
+    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: the study's "
+                                                    "'workers', else one per core)")
 
 
-def strategy_overrides(strategy: str, i_max: float, gains: dict[str, float] | None, best: float | None
-                       ) -> tuple[str, ...]:
-    """Scenario overrides that make a run follow a strategy."""
-    if strategy == "sosm":
-        assert gains is not None
-        return ("controller.mode=sosm", f"controller.lambda={gains['lambda']!r}", f"controller.rho={gains['rho']!r}",
-                f"controller.zeta={gains['zeta']!r}", f"controller.theta={gains['theta']!r}")
-    if strategy == "on-off":
-        return (f"units.controller.fmu={PROJECT / 'fmus' / 'SwitchingCurrentController.fmu'}",
-                f"controller.i_high={i_max!r}", "controller.i_low=0.0")
-    current = {"passive-off": 0.0, "passive-on": i_max, "best-constant": best}[strategy]
-    return ("controller.mode=passive", f"controller.i_passive={current!r}")
+def open_engine(args: argparse.Namespace, workers: int | None, max_worker_deaths: int) -> Engine:
+    """The engine the arguments ask for, started; EngineUnavailable or ValueError if it cannot be had."""
+    if args.workers is not None and args.workers < 1:
+        raise ValueError("--workers must be at least 1")
+    engine = Engine(scheduler_address(args.scheduler), args.workers if args.workers is not None else workers,
+                    max_worker_deaths=max_worker_deaths)
+    engine.start()
+    return engine
 
 
 def prepare(study: LoadedStudy) -> dict[str, Any]:
@@ -96,13 +102,26 @@ def prepare(study: LoadedStudy) -> dict[str, Any]:
         masses = list(setup.building.m) if setup else list(BuildingParams.dyke().m)
         records[r] = {"scenario": str(path), "stop_time_s": sim.stop_time, "masses_kg": masses,
                       "record_file": str(plan.data_files.get("ground.record", "")),
-                      "scale": plan.parameters.get("ground", {}).get("scale")}
+                      "scale": plan.parameters.get("ground", {}).get("scale"),
+                      "n_isolators": plan.parameters.get("isolator", {}).get("n_isolators")}
     return {"records": records, "gains": gains_doc, "algorithms": algorithms, "step": step}
 
 
-def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], workers: int, progress: bool,
-              command: list[str]) -> int:
-    """Run every job of a prepared study into ``folder``; returns the exit code."""
+def _job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]
+         ) -> tuple[str, str, PortablePlan, dict[str, Any]]:
+    """Label, content key, portable plan and payload inputs of one job (label ``record/...``)."""
+    plan = plan_scenario(study.scenario_path(label.split("/")[0]), overrides)
+    pp = portable(plan)
+    return label, job_key(kind, {"job": label, "plan": plan_content(pp), **extra}), pp, extra
+
+
+def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], engine: Engine, progress: bool,
+              command: list[str], resumed: dict[str, Any] | None = None) -> int:
+    """Run every job of a prepared study into ``folder`` on ``engine``; returns the exit code.
+
+    Each job's result is stored under its content key (:class:`ResultStore`); with ``resumed``
+    (the study.json of an earlier, unfinished run of this folder) stored results are reused.
+    """
     spec = study.spec
     base = run_overrides(spec)
     records = prepared["records"]
@@ -113,61 +132,94 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], worker
         "strategies": list(spec.strategies), "records": records, "run_overrides": list(base),
         "gains": prepared["gains"], "gains_file": str(study.gains_path) if prepared["gains"] else None,
         "best_current": {}, "sweep": {}, "reference": {}, "runs": [], "indices": {},
-        "provenance": {"commit": _git("rev-parse", "HEAD"), "dirty": bool(_git("status", "--porcelain", "--",
-                                                                                "components", "orchestration")),
-                       "command": command, "algorithms": prepared["algorithms"], "step_s": prepared["step"]},
+        "provenance": {**provenance(), "command": command, "algorithms": prepared["algorithms"],
+                       "step_s": prepared["step"]},
     }
-    (folder / "logs").mkdir()
-    (folder / "runs").mkdir()
+    data["engine"] = {"scheduler": engine.scheduler, "workers": engine.n_workers}
+    data["jobs_computed"] = 0  # jobs sent to the engine (the others' results were stored already)
+    if resumed is not None:
+        data["started"] = resumed.get("started", data["started"])
+        data["resumed"] = [*resumed.get("resumed", []), time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())]
+    (folder / "logs").mkdir(exist_ok=True)
+    (folder / "runs").mkdir(exist_ok=True)
+    store = ResultStore(folder)
     write_json(folder / "study.json", data)
-    bar = None
     n_jobs = (len(records) * ("best-constant" in spec.strategies) + len(records) * len(spec.strategies)
               + len(records) * len([s for s in ("passive-off", "passive-on") if s in spec.strategies])
               * spec.reference.enabled)
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=n_jobs, unit="job", desc=spec.name, file=sys.stderr, disable=None)
-
-    def say(text: str) -> None:
-        (bar.write if bar is not None else print)(text, file=sys.stderr)
-
-    def payload(r: str, extra: tuple[str, ...] = ()) -> dict[str, Any]:
-        return {"scenario": records[r]["scenario"], "overrides": (*base, *extra)}
-
+    bar = StudyBar(n_jobs, spec.name, enabled=progress)
+    bar.write(engine.describe())
+    say = bar.write
     collected: dict[str, JobResult] = {}  # every finished job, also when the study is interrupted
+    labels: dict[str, str] = {}  # content key -> job label (record/strategy[/reference])
+    shared: dict[str, Any] = {}  # SHA-256 -> handle of the file's bytes on the cluster
 
-    def done(res: JobResult) -> None:
-        collected[res.key] = res
-        if bar is not None:
-            bar.update(1)
+    def files_of(pp: PortablePlan) -> dict[str, Any]:
+        for sha, path in file_bytes([pp]).items():
+            if sha not in shared:
+                shared[sha] = engine.share(path.read_bytes())
+        return {sha: shared[sha] for sha in pp.shas}
+
+    def done(res: JobResult, stored: bool = False) -> None:
+        content_key = res.key
+        label = labels.get(content_key, content_key)
+        res = JobResult(label, res.ok, res.value, res.error, res.details, res.wall_time_s, res.status, res.worker,
+                        res.output)
+        value = res.value
+        if res.ok and isinstance(value, dict) and "files" in value:
+            entry = next(e for e in data["runs"] if e["key"] == label)
+            write_run_files(folder / entry["folder"], value.pop("files"))
+        if res.output or res.details:
+            (folder / "logs" / f"{label.replace('/', '-')}.log").write_text(res.output + res.details)
+        if not stored:
+            store.put(content_key,
+                      {"label": label, "ok": res.ok, "status": res.status, "value": value, "error": res.error,
+                       "wall_time_s": res.wall_time_s, "worker": res.worker})
+        collected[label] = res
+        bar.done(res.ok and not (isinstance(value, dict) and value.get("complete") is False))
         if not res.ok:
-            say(f"FAILED {res.key}: {res.error}")
-        elif isinstance(res.value, dict) and "time_beyond_identified_range_s" in res.value:
-            v = res.value
+            say(f"FAILED {label}: {res.error}")
+        elif isinstance(value, dict) and "time_beyond_identified_range_s" in value:
+            v = value
             if not v["complete"]:
-                say(f"FAILED {res.key}: run {v['status']}: {v['error']}")
+                say(f"FAILED {label}: run {v['status']}: {v['error']}")
             if (v["time_beyond_identified_range_s"] or 0) > 0:
                 limit = (f"; beyond the {1e3 * spec.x_limit:g} mm device limit for "
                          f"{v['time_beyond_device_limit_s']:.3g} s" if v["time_beyond_device_limit_s"] else "")
-                say(f"warning: {res.key}: base displacement {1e3 * v['peak_base_displacement_m']:.2f} mm, beyond the "
+                say(f"warning: {label}: base displacement {1e3 * v['peak_base_displacement_m']:.2f} mm, beyond the "
                     f"identified ±{1e3 * spec.x_identified:g} mm for {v['time_beyond_identified_range_s']:.3g} s "
                     f"(isolator model extrapolated){limit}")
+
+    def run_batch(fn: Any, jobs: list[tuple[str, str, PortablePlan, dict[str, Any]]], isolate: bool) -> None:
+        """Jobs (label, key, plan, inputs): stored results reused, the others run on the engine."""
+        todo = []
+        for label, key, pp, extra in jobs:
+            labels[key] = label
+            old = store.get(key)
+            if old is not None:
+                done(JobResult(key, old["ok"], old.get("value"), old.get("error"), "", old.get("wall_time_s", 0.0),
+                               old["status"], old.get("worker")), stored=True)
+            else:
+                todo.append((key, {"plan": pp, "files": files_of(pp), **extra}))
+        if todo:
+            data["jobs_computed"] += len(todo)
+            engine.map(fn, [p for _, p in todo], [k for k, _ in todo], isolate=isolate, timeout_s=spec.timeout_s,
+                       on_done=done)
 
     interrupted = False
     try:
         if "best-constant" in spec.strategies:
             currents = spec.sweep.currents(spec.i_max)
-            jobs = [Job(f"{r}/sweep", sweep_job, {**payload(r), "currents": currents,
-                                                   "objective": spec.objective.model_dump()},
-                        folder / "logs" / f"{r}-sweep.log") for r in records]
-            for key, res in run_jobs(jobs, workers, done, spec.timeout_s).items():
-                r = key.split("/")[0]
-                data["sweep"][r] = {"ok": res.ok, "error": res.error, **(res.value or {})}
-                if res.ok:
-                    data["best_current"][r] = res.value["best_current_A"]
+            extra = {"currents": currents, "objective": spec.objective.model_dump()}
+            run_batch(sweep_job, [_job(study, f"{r}/sweep", "sweep", base, extra) for r in records], isolate=False)
+            for r in records:
+                res = collected.get(f"{r}/sweep")
+                if res is not None:
+                    data["sweep"][r] = {"ok": res.ok, "error": res.error, **(res.value or {})}
+                    if res.ok:
+                        data["best_current"][r] = res.value["best_current_A"]
         gains = prepared["gains"]["gains"] if prepared["gains"] else None
-        jobs = []
+        runs, references = [], []
         order = sorted(records, key=lambda r: -records[r]["stop_time_s"])  # longest first
         for r in order:
             for s in spec.strategies:
@@ -177,21 +229,20 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], worker
                 data["runs"].append(entry)
                 if s == "best-constant" and r not in data["best_current"]:
                     entry["error"] = f"current sweep failed: {data['sweep'].get(r, {}).get('error')}"
-                    done(JobResult(key, False, error=entry["error"]))
+                    done(JobResult(key, False, error=entry["error"], status="failed"), stored=True)
                     continue
                 extra = strategy_overrides(s, spec.i_max, gains, data["best_current"].get(r))
                 entry["current_A"] = None if s in ("sosm", "on-off") else float(extra[-1].split("=")[1])
                 entry["overrides"] = list(extra)
-                jobs.append(Job(key, cosim_job, {**payload(r, extra), "out": str(folder / entry["folder"])},
-                                folder / "logs" / f"{r}-{s}.log"))
+                runs.append(_job(study, key, "cosim", (*base, *extra, OUTPUTS_OVERRIDE), {}))
             if spec.reference.enabled:
                 for s in ("passive-off", "passive-on"):
                     if s in spec.strategies:
                         current = 0.0 if s == UNCONTROLLED else spec.i_max
-                        jobs.append(Job(f"{r}/{s}/reference", reference_job,
-                                        {**payload(r), "current": current, "rtol": spec.reference.rtol},
-                                        folder / "logs" / f"{r}-{s}-reference.log"))
-        run_jobs(jobs, workers, done, spec.timeout_s)
+                        references.append(_job(study, f"{r}/{s}/reference", "reference", base,
+                                               {"current": current, "rtol": spec.reference.rtol}))
+        run_batch(cosim_job, runs, isolate=True)
+        run_batch(reference_job, references, isolate=False)
     except KeyboardInterrupt:
         interrupted = True
         say("interrupted: writing the report of the finished runs")
@@ -214,13 +265,24 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], worker
     data["finished"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     data["interrupted"] = interrupted
     write_json(folder / "study.json", data)
-    if bar is not None:
-        bar.close()
+    bar.close()
     write_outputs(folder, data)
     failed = [e for e in data["runs"] if not e["ok"]]
     failed += [k for k, v in {**data["sweep"], **data["reference"]}.items() if not v["ok"]]
     print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
     return 1 if failed or interrupted else 0
+
+
+def resumed_study(folder: Path) -> tuple[LoadedStudy, dict[str, Any]]:
+    """The study of an existing study folder, as it was configured; ScenarioError if unusable."""
+    try:
+        data = read_study(folder)
+        config = {k: v for k, v in data["config"].items() if k != "sweep_currents"}
+        spec = StudySpec.model_validate(config)
+        return LoadedStudy(spec, Path(data["study_file"]), config), data
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ScenarioError(f"{folder}: not a study folder that can be resumed ({type(exc).__name__}: {exc})"
+                            ) from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -235,23 +297,30 @@ def main(argv: list[str] | None = None) -> int:
         write_outputs(args.report, data)
         print(f"report regenerated: {args.report / 'report.md'}")
         return 0
+    resumed = None
     try:
-        try:
-            study = load_study(args.study, tuple(args.overrides))
-        except ScenarioError:
-            require_kind(args.study, "study")  # a run scenario: name run.py instead
-            raise
+        if args.resume is not None:
+            study, resumed = resumed_study(args.resume)
+        else:
+            try:
+                study = load_study(args.study, tuple(args.overrides))
+            except ScenarioError:
+                require_kind(args.study, "study")  # a run scenario: name run.py instead
+                raise
         prepared = prepare(study)
-        folder = new_run_folder(Path(study.spec.output), study.spec.name, args.out)
+        engine = open_engine(args, study.spec.workers, study.spec.max_worker_deaths)
     except ScenarioError as exc:
         print(exc.report(), file=sys.stderr)
         return 2
-    except (NotMonolithic, RunFolderExists) as exc:
+    except (NotMonolithic, EngineUnavailable, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    workers = args.workers if args.workers is not None else study.spec.workers
-    if workers < 1:
-        print("error: --workers must be at least 1", file=sys.stderr)
+    try:
+        folder = args.resume if args.resume is not None else new_run_folder(Path(study.spec.output),
+                                                                             study.spec.name, args.out)
+    except RunFolderExists as exc:
+        engine.close()
+        print(f"error: {exc}", file=sys.stderr)
         return 2
 
     def on_sigterm(signum: int, frame: Any) -> None:
@@ -259,6 +328,7 @@ def main(argv: list[str] | None = None) -> int:
 
     previous = signal.signal(signal.SIGTERM, on_sigterm)
     try:
-        return run_study(study, folder, prepared, workers, not args.quiet, [sys.executable, *sys.argv])
+        return run_study(study, folder, prepared, engine, not args.quiet, [sys.executable, *sys.argv], resumed)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        engine.close()

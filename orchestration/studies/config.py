@@ -107,7 +107,8 @@ class StudySpec(_Strict):
     objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
     tuning: TuningSpec = Field(default_factory=TuningSpec)
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
-    workers: int = 2
+    workers: int | None = None  # local cluster: worker processes (None: one per core)
+    max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
     timeout_s: float | None = 1800.0  # per co-simulation process
     output: str = "studies"
 
@@ -121,8 +122,10 @@ class StudySpec(_Strict):
             raise ValueError("strategies are listed twice")
         if not (np.isfinite(self.i_max) and self.i_max > 0):
             raise ValueError(f"i_max must be positive, got {self.i_max}")
-        if self.workers < 1:
+        if self.workers is not None and self.workers < 1:
             raise ValueError("workers must be at least 1")
+        if self.max_worker_deaths < 0:
+            raise ValueError("max_worker_deaths must not be negative")
         return self
 
 

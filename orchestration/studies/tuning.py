@@ -27,6 +27,7 @@ import math
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -124,14 +125,28 @@ def gains_from_vector(q: np.ndarray, i_max: float) -> SosmGains:
     return SosmGains(lam=lam, rho=rho, zeta=ratio * rho / theta, theta=theta, i_max=i_max)
 
 
-def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float, progress: bool = False
-         ) -> dict[str, Any]:
-    """Tune the SOSM gains on one planned record; returns gains, objective and the evaluation history."""
+# evaluate(settings, stop_time) -> peaks of each setting: a passive current [A] (float) or SOSM gains
+Evaluate = Callable[[list[float | SosmGains], float | None], list[dict[str, float]]]
+
+
+def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float, progress: bool = False,
+         evaluate: Evaluate | None = None) -> dict[str, Any]:
+    """Tune the SOSM gains on one planned record; returns gains, objective and the evaluation history.
+
+    ``evaluate`` runs a batch of simulations (the passive-off reference and the Latin-hypercube
+    points fan out through it, e.g. on the Dask engine); by default they run here, one by one.
+    The result is the same either way.
+    """
     from scipy.optimize import minimize
     from scipy.stats import qmc
 
+    def run_here(settings: list[float | SosmGains], stop: float | None) -> list[dict[str, float]]:
+        return [peak_values(_simulate(system_setup(plan, s) if isinstance(s, float) else system_setup(plan, None, s),
+                                      plan, stop)) for s in settings]
+
+    evaluate = evaluate or run_here
     started = time.time()
-    off = peak_values(_simulate(system_setup(plan, 0.0), plan, tuning.stop_time))
+    off = evaluate([0.0], tuning.stop_time)[0]
     keys = ("lam", "rho", "theta", "ratio")
     lo = np.log([tuning.bounds[k][0] for k in keys])
     hi = np.log([tuning.bounds[k][1] for k in keys])
@@ -159,6 +174,15 @@ def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
     d = DEFAULT_GAINS
     q_default = np.clip(np.log([d.lam, d.rho, d.theta, d.zeta * d.theta / d.rho]), lo, hi)
     starts = [q_default, *(lo + (hi - lo) * qmc.LatinHypercube(d=4, seed=tuning.seed).random(tuning.n_samples))]
+    batch = [np.clip(q, lo, hi) for q in starts]
+    for q, p in zip(batch, evaluate([gains_from_vector(q, i_max) for q in batch], tuning.stop_time), strict=True):
+        key = tuple(np.round(q, 12))
+        if key not in cache:  # as f(q) would record it, in the same order
+            g = gains_from_vector(q, i_max)
+            cache[key] = j = objective(p, off, obj)
+            history.append({"lam": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, **p, "J": j})
+            if bar is not None:
+                bar.update(1)
     values = [f(q) for q in starts]
     q0 = starts[int(np.argmin(values))]
     simplex = np.array([q0] + [q0 + np.where(np.arange(4) == k, 0.4 * (1 if q0[k] < (lo[k] + hi[k]) / 2 else -1), 0)
@@ -176,12 +200,19 @@ def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
             "history": history, "wall_time_s": time.time() - started}
 
 
-def check_gains(plan: SystemPlan, gains: SosmGains, obj: ObjectiveSpec) -> dict[str, float]:
-    """Objective and ratios against passive-off of the given and the default gains on one record (full length)."""
-    off = peak_values(_simulate(system_setup(plan, 0.0), plan))
+def check_gains(plan: SystemPlan, gains: SosmGains, obj: ObjectiveSpec,
+                peaks: list[dict[str, float]] | None = None) -> dict[str, float]:
+    """Objective and ratios against passive-off of the given and the default gains on one record (full length).
+
+    ``peaks``: the three simulations (passive-off, tuned, default gains) already run elsewhere.
+    """
+    default = SosmGains(**{**asdict(DEFAULT_GAINS), "i_max": gains.i_max})
+    if peaks is None:
+        peaks = [peak_values(_simulate(system_setup(plan, 0.0), plan)),
+                 *(peak_values(_simulate(system_setup(plan, None, g), plan)) for g in (gains, default))]
+    off = peaks[0]
     out: dict[str, float] = {}
-    for label, g in (("tuned", gains), ("default", SosmGains(**{**asdict(DEFAULT_GAINS), "i_max": gains.i_max}))):
-        p = peak_values(_simulate(system_setup(plan, None, g), plan))
+    for (label, _), p in zip((("tuned", gains), ("default", default)), peaks[1:], strict=True):
         out[f"J_{label}"] = objective(p, off, obj)
         out[f"a3_ratio_{label}"] = p["a3"] / off["a3"]
         out[f"drift_ratio_{label}"] = p["d"] / off["d"]
@@ -248,8 +279,39 @@ def _git(*args: str) -> str:
         return ""
 
 
+def tuning_job(payload: dict[str, Any]) -> dict[str, float]:
+    """One simulation on a worker: peaks (a3, d, x0) at a passive current [A] (a float) or with SOSM gains."""
+    from orchestration.studies.portable import relocate
+
+    plan, _ = relocate(payload["plan"], payload["files"])
+    setting = payload["setting"]
+    setup = system_setup(plan, setting) if isinstance(setting, float) else system_setup(plan, None, setting)
+    return peak_values(_simulate(setup, plan, payload["stop_time"]))
+
+
+def engine_evaluate(engine: Any, plan: SystemPlan) -> Evaluate:
+    """An ``evaluate`` for :func:`tune` that fans a batch out on a Dask engine (in the workers' processes)."""
+    from orchestration.studies.portable import file_bytes, portable
+
+    pp = portable(plan)
+    files = {sha: engine.share(path.read_bytes()) for sha, path in file_bytes([pp]).items()}
+    shared = engine.share(pp, dedupe=False)
+
+    def evaluate(settings: list[float | SosmGains], stop: float | None) -> list[dict[str, float]]:
+        results = engine.map(tuning_job, [{"plan": shared, "files": files, "setting": s, "stop_time": stop}
+                                          for s in settings])
+        bad = [r for r in results if not r.ok]
+        if bad:
+            raise RuntimeError(f"tuning simulation {bad[0].status}: {bad[0].error}\n{bad[0].details}")
+        return [r.value for r in results]
+
+    return evaluate
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI: tune the SOSM gains of a study and write its gains file."""
+    from orchestration.studies.engine import Engine, EngineUnavailable, scheduler_address
+
     parser = argparse.ArgumentParser(prog="tune.py", description="Tune the SOSM gains of a study.")
     parser.add_argument("study", type=Path, help="study YAML file (scenarios/case_study.yaml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -257,6 +319,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="gains file to write (default: the study's 'gains')")
     parser.add_argument("--force", action="store_true", help="replace an existing gains file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="fan the sample evaluations and checks out on an "
+                        "existing Dask cluster (default: DASK_SCHEDULER_ADDRESS, else a local one)")
+    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: one per core)")
     args = parser.parse_args(argv)
     try:
         study = load_study(args.study, tuple(args.overrides))
@@ -268,14 +333,26 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {out} exists: pass --force to replace it", file=sys.stderr)
             return 2
         plans = {r: plan_scenario(study.scenario_path(r), run_overrides(spec)) for r in spec.records}
-        result = tune(plans[spec.tuning.record], spec.tuning, spec.objective, spec.i_max, progress=not args.quiet)
-    except (ScenarioError, NotMonolithic) as exc:
+        for plan in plans.values():
+            system_setup(plan, 0.0)  # NotMonolithic before any work
+        engine = Engine(scheduler_address(args.scheduler), args.workers or spec.workers,
+                        max_worker_deaths=spec.max_worker_deaths)
+        engine.start()
+    except (ScenarioError, NotMonolithic, EngineUnavailable, ValueError) as exc:
         print(exc.report() if isinstance(exc, ScenarioError) else f"error: {exc}", file=sys.stderr)
         return 2
-    checks = {r: check_gains(p, result["gains"], spec.objective) for r, p in plans.items()}
+    with engine:
+        print(engine.describe(), file=sys.stderr)
+        result = tune(plans[spec.tuning.record], spec.tuning, spec.objective, spec.i_max, progress=not args.quiet,
+                      evaluate=engine_evaluate(engine, plans[spec.tuning.record]))
+        g = result["gains"]
+        default = SosmGains(**{**asdict(DEFAULT_GAINS), "i_max": g.i_max})
+        checks = {}
+        for r, p in plans.items():  # passive-off, tuned, default gains of every record, all at once
+            checks[r] = engine_evaluate(engine, p)([0.0, g, default], None)
+        checks = {r: check_gains(plans[r], g, spec.objective, peaks) for r, peaks in checks.items()}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, gains_document(study, result, checks))
-    g = result["gains"]
     print(f"tuned on {spec.tuning.record}: J = {result['objective']:.4f} "
           f"(default gains {result['objective_default_gains']:.4f}), "
           f"{result['evaluations']} simulations, {result['wall_time_s']:.0f} s")
@@ -283,4 +360,3 @@ def main(argv: list[str] | None = None) -> int:
     for r, c in checks.items():
         print(f"  {r}: J tuned {c['J_tuned']:.4f}, default {c['J_default']:.4f}")
     return 0
-

@@ -1,0 +1,995 @@
+"""Reliability corpus (not part of the test suite): hostile input and faults through every command-line tool.
+
+``python benchmarks/reliability_corpus.py [--workers 2] [--only CLASS ...] [--report docs/reliability.md]``
+
+Builds several hundred cases of its own (bad scenarios, bad overrides, bad records, bad
+FMUs, hostile SSP packages, unusable output folders, full and read-only disks, signals
+during start-up and during a run, concurrent runs into one ``--out``, the other tools'
+inputs), runs each as a subprocess in a fresh folder (with its own temporary folder and a
+file that must survive), and classifies the outcome:
+
+* **clean**: one of the tool's documented exit codes (3, a bug, is not clean), no
+  traceback, a message on stderr when it fails, nothing written on exit 2 or 130, no file
+  outside the output folder, no temporary file left, and no folder that looks complete
+  without being so (``summary.json`` says ``complete: true`` only with every file whole);
+* **data loss**: a file that existed before the case (a previous run, a "precious" file)
+  is changed or gone.
+
+Writes the table of classes with counts and outcomes into the ``--report`` file (between
+the markers ``<!-- corpus:begin -->`` and ``<!-- corpus:end -->``) and, with ``--jsonl
+FILE``, every case's outcome as JSON lines. Full and read-only disks are tmpfs mounts
+(root only); without root they are simulated (RLIMIT_FSIZE makes writes fail with EFBIG;
+a read-only folder is skipped).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import random
+import resource
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import zipfile
+from collections import Counter, defaultdict
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+PROJECT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(PROJECT))
+SC = PROJECT / "scenarios"
+RECORDS = SC / "records"
+FMUS = PROJECT / "fmus"
+PY = sys.executable
+TOOLS = {
+    "run.py": [PY, str(PROJECT / "orchestration" / "run.py")],
+    "study.py": [PY, str(PROJECT / "orchestration" / "study.py")],
+    "tune.py": [PY, str(PROJECT / "orchestration" / "tune.py")],
+    "identify.py": [PY, str(PROJECT / "orchestration" / "identify.py")],
+    "ssp.py": [PY, str(PROJECT / "orchestration" / "ssp.py")],
+    "build": [PY, "-m", "components.build"],
+}
+DOCUMENTED = {"run.py": {0, 1, 2, 130}, "study.py": {0, 1, 2, 130}, "tune.py": {0, 2, 130},
+              "identify.py": {0, 1, 2, 130, 143}, "ssp.py": {0, 2, 130}, "build": {0, 1, 2, 130}}
+SHORT = "simulation.stop_time=0.05"
+PRECIOUS = "precious.txt"
+IS_ROOT = os.geteuid() == 0
+SHARED_TMP = {"dask-scratch-space"}
+"""Entries of the temporary folder that are shared caches reused by every run (dask's), not leftovers."""
+
+
+@dataclass
+class Case:
+    """One command run on prepared files; ``setup(folder)`` makes them and returns extra argv."""
+
+    cls: str
+    name: str
+    tool: str
+    argv: list[str]
+    setup: Callable[[Path], None] | None = None
+    signal_after: tuple[int, float] | None = None  # (signal, seconds) sent to the process
+    copies: int = 1  # concurrent copies of the same command (same --out)
+    mount: str | None = None  # tmpfs at ``out``: "full" (small), "full-before" (filled up), "readonly"
+    mount_size: str = "1M"
+    out: str | None = "out"  # the output folder the case may create (relative to the case folder)
+    timeout: float = 120.0
+
+
+@dataclass
+class Result:
+    cls: str
+    name: str
+    tool: str
+    codes: list[int]
+    clean: bool
+    data_loss: bool
+    reasons: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    stderr: str = ""
+
+
+# -- inputs -------------------------------------------------------------------------------------------
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+def _data_file(dumper: yaml.SafeDumper, value: Any) -> Any:
+    return dumper.represent_scalar(f"!{value.kind}", value.name)
+
+
+def standalone(path: Path) -> dict[str, Any]:
+    """A real scenario as one self-contained tree (extends merged, FMU paths absolute), stopping at 0.05 s."""
+    from orchestration.master.scenario import load_scenario
+    from orchestration.master.yaml_source import DataFile
+
+    _Dumper.add_representer(DataFile, _data_file)
+    loaded = load_scenario(path, (SHORT,))
+    tree = copy.deepcopy(loaded.raw)
+    for unit in tree["units"]:
+        tree["units"][unit]["fmu"] = str(loaded.fmu_path(unit))
+    return tree
+
+
+def key_paths(tree: Any, path: tuple = ()) -> list[tuple]:
+    out: list[tuple] = []
+    items = list(tree.items()) if isinstance(tree, dict) else list(enumerate(tree)) if isinstance(tree, list) else []
+    for key, value in items:
+        out.append((*path, key))
+        out += key_paths(value, (*path, key))
+    return out
+
+
+def mutated(tree: dict[str, Any], path: tuple, op: str, value: Any) -> dict[str, Any]:
+    out = copy.deepcopy(tree)
+    node = out
+    for part in path[:-1]:
+        node = node[part]
+    if op == "replace":
+        node[path[-1]] = value
+    elif op == "delete":
+        del node[path[-1]]
+    elif isinstance(node, dict):
+        node[f"unknown_{path[-1]}"] = value
+    else:
+        node.append(value)
+    return out
+
+
+def write_yaml(tree: Any) -> Callable[[Path], None]:
+    text = yaml.dump(tree, Dumper=_Dumper, allow_unicode=True)
+    return lambda d: (d / "s.yaml").write_text(text)
+
+
+def write_bytes(name: str, data: bytes) -> Callable[[Path], None]:
+    return lambda d: (d / name).write_bytes(data)
+
+
+def copy_zip(src: Path, dest: Path, edit: Callable[[str, bytes], bytes | None] = lambda n, b: b,
+             extra: dict[str, bytes] | None = None, infos: list[tuple[zipfile.ZipInfo, bytes]] = ()) -> None:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = edit(info.filename, zin.read(info))
+            if data is not None:
+                zout.writestr(info, data)
+        for name, data in (extra or {}).items():
+            zout.writestr(name, data)
+        for info, data in infos:
+            zout.writestr(info, data)
+
+
+def zeros_entry(z: zipfile.ZipFile, name: str, mib: int) -> None:
+    with z.open(name, "w", force_zip64=True) as f:
+        block = bytes(1 << 20)
+        for _ in range(mib):
+            f.write(block)
+
+
+# -- the cases ----------------------------------------------------------------------------------------
+
+
+def scenario_cases(rng: random.Random, n: int) -> list[Case]:
+    """One key of a real scenario changed (value, deletion or unknown sibling)."""
+    from orchestration.master.yaml_source import DataFile
+
+    values = [None, True, False, 0, -1, 1e308, -1e308, 5e-324, float("inf"), float("nan"), "", "x", "../../escape",
+              "/dev/zero", "/etc/passwd", "1_0", "1e-3", [], {}, [[[["deep"]]]], "A" * 5000, {"a": [1, {"b": 2}]},
+              DataFile("/dev/zero", "record"), DataFile("nowhere.csv", "data"), DataFile("/etc/passwd", "record"),
+              DataFile("../../../etc/passwd", "data"), "passive", "sosm ", "Gauss-Seidel", 1, 2.5, "0.001"]
+    names = ["elcentro.yaml", "kobe.yaml", "elcentro_constant_current.yaml", "elcentro_c_isolator.yaml",
+             "hachinohe.yaml", "northridge.yaml", "elcentro_bouc_wen.yaml"]
+    trees = {name: standalone(SC / name) for name in names}
+    out = []
+    for k in range(n):
+        name = rng.choice(names)
+        tree = trees[name]
+        path = rng.choice(key_paths(tree))
+        op = rng.choice(["replace", "replace", "replace", "delete", "add"])
+        value = rng.choice(values)
+        label = f"{name} {op} {'.'.join(map(str, path))}" + (f" = {value!r}"[:60] if op != "delete" else "")
+        with_out = rng.random() < 0.7
+        out.append(Case("scenario: one key changed", f"{k:03d} {label}", "run.py",
+                        ["s.yaml", "--no-plots", "--quiet", *(["--out", "out"] if with_out else [])],
+                        write_yaml(mutated(tree, path, op, value)), out="out" if with_out else "runs"))
+    return out
+
+
+def yaml_text_cases() -> list[Case]:
+    """Hostile YAML text and files: encodings, nesting, aliases, special files, extends chains."""
+    base = f"extends: {SC / 'elcentro.yaml'}\nsimulation: {{stop_time: 0.05}}\n"
+    laughs = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [{', '.join([f'*{p}'] * 10)}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True))
+    texts: dict[str, bytes] = {
+        "latin-1 name": ("name: caf\xe9\n" + base).encode("latin-1"),
+        "utf-16": base.encode("utf-16"),
+        "utf-8 with BOM": b"\xef\xbb\xbf" + base.encode(),
+        "NUL byte": base.encode() + b"name: a\x00b\n",
+        "binary garbage": bytes(random.Random(1).randrange(256) for _ in range(4096)),
+        "deep lists": ("a: " + "[" * 5000 + "]" * 5000 + "\n").encode(),
+        "deep maps": ("a: " + "{b: " * 3000 + "1" + "}" * 3000 + "\n").encode(),
+        "65 levels": (base + "x: " + "[" * 65 + "]" * 65 + "\n").encode(),
+        "billion laughs": laughs.encode(),
+        "recursive alias": b"a: &a [*a]\n",
+        "recursive map alias": b"a: &a {b: *a}\n",
+        "undefined alias": (base + "name: *nothing\n").encode(),
+        "many aliases": (base + "x: &x [1]\n" + "".join(f"y{k}: *x\n" for k in range(3000))).encode(),
+        "duplicate keys": (base + "name: a\nname: b\n").encode(),
+        "two documents": (base + "---\nname: b\n").encode(),
+        "top-level list": b"- a\n- b\n",
+        "top-level scalar": b"42\n",
+        "empty": b"",
+        "only comments": b"# nothing\n",
+        "tabs": (base + "\tname: x\n").encode(),
+        "unknown tag": (base + "name: !python/object:os.system echo\n").encode(),
+        "python tag": (base + "name: !!python/object/apply:os.system [echo hi]\n").encode(),
+        "binary tag": (base + "name: !!binary aGVsbG8=\n").encode(),
+        "timestamp name": (base + "name: 2001-12-14\n").encode(),
+        "huge integer": (base + "simulation: {step: " + "9" * 5000 + "}\n").encode(),
+        "float tag garbage": (base + "simulation: {step: !!float abc}\n").encode(),
+        "complex key": (base + "? [a, b]\n: 1\n").encode(),
+        "very long line": (base + "description: " + "x" * 1_000_000 + "\n").encode(),
+        "5 MB file": (base + "# " + "x" * (5 << 20) + "\n").encode(),
+        "extends non-string": b"extends: [a, b]\n",
+        "extends self": b"extends: s.yaml\n",
+        "extends missing": b"extends: nowhere.yaml\n",
+        "extends a folder": b"extends: /tmp\n",
+        "extends /dev/zero": b"extends: /dev/zero\n",
+        "extends /dev/urandom": b"extends: /dev/urandom\n",
+        "extends /proc/self/mem": b"extends: /proc/self/mem\n",
+        "extends a study": f"extends: {SC / 'case_study.yaml'}\n".encode(),
+    }
+    out = [Case("YAML text and files", name, "run.py", ["s.yaml", "--out", "out", "--quiet", "--no-plots"],
+                write_bytes("s.yaml", data)) for name, data in texts.items()]
+
+    def fifo(d: Path) -> None:
+        os.mkfifo(d / "s.yaml")
+
+    def fifo_extends(d: Path) -> None:
+        os.mkfifo(d / "base.yaml")
+        (d / "s.yaml").write_text("extends: base.yaml\n")
+
+    def chain(d: Path) -> None:
+        for k in range(40):
+            (d / f"c{k}.yaml").write_text(f"extends: c{k + 1}.yaml\n" if k < 39 else base)
+        shutil.copy(d / "c0.yaml", d / "s.yaml")
+
+    def loop(d: Path) -> None:
+        (d / "a.yaml").write_text("extends: s.yaml\n")
+        (d / "s.yaml").write_text("extends: a.yaml\n")
+
+    def symlink_loop(d: Path) -> None:
+        os.symlink("s.yaml", d / "s.yaml")
+
+    def unreadable(d: Path) -> None:
+        (d / "s.yaml").write_text(base)
+        os.chmod(d / "s.yaml", 0)
+
+    for name, setup in (("a FIFO", fifo), ("extends a FIFO", fifo_extends), ("extends chain of 40", chain),
+                        ("extends loop", loop), ("symlink to itself", symlink_loop), ("unreadable (mode 000)",
+                                                                                      unreadable)):
+        out.append(Case("YAML text and files", name, "run.py", ["s.yaml", "--out", "out", "--quiet"], setup))
+    for name, path in (("/dev/zero", "/dev/zero"), ("/dev/null", "/dev/null"), ("a folder", "/tmp"),
+                       ("missing", "nowhere.yaml"), ("/proc/self/mem", "/proc/self/mem")):
+        out.append(Case("YAML text and files", f"scenario is {name}", "run.py", [path, "--out", "out", "--quiet"]))
+    return out
+
+
+def override_cases() -> list[Case]:
+    """Hostile ``--set`` values on a real scenario."""
+    sets = ["simulation.step=true", "simulation.step=false", "simulation.stop_time=.inf", "simulation.stop_time=.nan",
+            "simulation.stop_time=-.inf", "simulation.step=1e-320", "simulation.step=5e-324", "simulation.step=0",
+            "simulation.step=-1", "simulation.stop_time=1e308", "simulation.stop_time=1e9", "simulation.stop_time=1e5",
+            "simulation.start_time=1e308", "simulation.step=0.0007", "x=&a [*a]", "x=&a {b: *a}",
+            "x=" + "[" * 200, "x=" + "[" * 60 + "]" * 60, "controller.mode=pasive", "controller.mode=PASSIVE",
+            "controller.mode=1", "controller.mode=true", "name=../../escape", "name=.hidden", "name=a/b",
+            "name=" + "n" * 300, "name=", "units.ground.fmu=/dev/zero", "units.ground.fmu=/tmp",
+            "units.ground.fmu=/etc/passwd", "units.ground.fmu=nowhere.fmu", "ground.record=!data missing.csv",
+            "ground.record=!record /dev/zero", "ground.record=!record /etc/passwd", "ground.record=!record /tmp",
+            "ground.record=!record ../../../etc/shadow", "ground.record=!bogus x", "ground.scale=1_0",
+            "ground.scale=0x10", "ground.scale=.inf", "ground.scale=yes", "isolator.n_isolators=2.5",
+            "isolator.n_isolators=true", "connections=[{source: ground.ag, target: building.ag, delayed: 1}]",
+            "connections=[ground.ag -> ground.ag]", "connections=[a -> b]", "connections=7",
+            "limits.max_abs={building.x_0: true}", "limits.max_abs={building.x_0: -1}",
+            "limits.max_abs={nowhere.x: 1}", "report.displacement_limits={a: true}", "report.caption={a.b}",
+            "outputs=[building.nothing]", "outputs=[]", "simulation.order=[ground]", "simulation.algorithm=magic",
+            "simulation.executor=gpu", "results.dir=", "units={}", "units=&a {b: *a}", "units.x.fmu=1",
+            "=1", "a..b=1", "noequals", "units.controller.parameters.lambda=-1e308",
+            "controller.i_passive=.nan", "simulation=null", "description=" + "d" * 100000]
+    return [Case("--set overrides", s[:70], "run.py", [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", s,
+                                                     "--out", "out", "--quiet", "--no-plots"]) for s in sets]
+
+
+def record_cases(rng: random.Random, n: int) -> list[Case]:
+    """Real records with one token changed, and hostile record files (CSV and PEER AT2)."""
+    tokens = ["1_0", "inf", "-inf", "nan", "NaN", "0x10", "abc", "", "1e400", "-1e400", "-", "1,2,3", "\xe9",
+              "1e-3", "+.5", "1.2.3", "--1", "1e", "\x00", "9" * 400]
+    sources = sorted(RECORDS.glob("*.csv"))
+    out = []
+    for k in range(n):
+        src = rng.choice(sources)
+        lines = src.read_text().splitlines()
+        i = rng.randrange(min(len(lines), 300))
+        parts = lines[i].split(",")
+        j = rng.randrange(len(parts))
+        token = rng.choice(tokens)
+        parts[j] = token
+        lines[i] = ",".join(parts)
+        data = ("\n".join(lines) + "\n").encode("utf-8", "surrogateescape")
+        out.append(Case("records: one token changed", f"{k:03d} {src.name}:{i + 1} col {j} = {token!r}"[:80],
+                        "run.py", [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", "ground.record=!record r.csv",
+                                   "--out", "out", "--quiet", "--no-plots"], write_bytes("r.csv", data)))
+    at2 = {"DT=1e308": "NPTS= 3, DT= 1e308", "DT=..": "NPTS= 3, DT= ..", "DT=0": "NPTS= 3, DT= 0",
+           "DT=-0.01": "NPTS= 3, DT= -0.01", "DT=1e-320": "NPTS= 3, DT= 1e-320", "no DT": "NPTS= 3",
+           "NPTS huge": "NPTS= 99999999999999999999999, DT= 0.01", "NPTS mismatch": "NPTS= 5, DT= 0.01"}
+    for name, header in at2.items():
+        text = f"PEER\nrecord\nACCELERATION IN G\n{header}\n0.0 0.1 -0.1\n".encode()
+        out.append(Case("records: hostile files", f"AT2 {name}", "run.py",
+                        [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", "ground.record=!record r.at2", "--out",
+                         "out", "--quiet", "--no-plots"], write_bytes("r.at2", text)))
+    files: dict[str, Callable[[Path], None]] = {
+        "empty": write_bytes("r.csv", b""),
+        "header only": write_bytes("r.csv", b"time,acc\n"),
+        "one sample": write_bytes("r.csv", b"0,0\n"),
+        "time going back": write_bytes("r.csv", b"0,0\n0.02,1\n0.01,2\n"),
+        "three columns": write_bytes("r.csv", b"0,0,0\n0.02,1,1\n"),
+        "latin-1 header": write_bytes("r.csv", "t\xe9mps,acc\n0,0\n0.02,0.1\n".encode("latin-1")),
+        "binary garbage": write_bytes("r.csv", bytes(random.Random(2).randrange(256) for _ in range(4096))),
+        "300 MB sparse file": lambda d: os.truncate(_touch(d / "r.csv"), 300 << 20),
+        "a FIFO": lambda d: os.mkfifo(d / "r.csv"),
+        "a folder": lambda d: (d / "r.csv").mkdir(),
+        "symlink to /dev/zero": lambda d: os.symlink("/dev/zero", d / "r.csv"),
+    }
+    for name, setup in files.items():
+        out.append(Case("records: hostile files", name, "run.py",
+                        [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", "ground.record=!record r.csv", "--out",
+                         "out", "--quiet", "--no-plots"], setup))
+    out.append(Case("records: hostile files", "plain-string record path missing", "run.py",
+                    [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", "ground.record=nowhere.csv", "--out", "out",
+                     "--quiet", "--no-plots"]))
+    return out
+
+
+def _touch(path: Path) -> Path:
+    path.write_bytes(b"0,0\n")
+    return path
+
+
+def fmu_cases() -> list[Case]:
+    """FMUs that are not FMUs, cannot load, or are hostile archives, in place of the isolator."""
+    src = FMUS / "MreIsolator.fmu"
+
+    def binary(how: str) -> Callable[[Path], None]:
+        def setup(d: Path) -> None:
+            def edit(name: str, raw: bytes) -> bytes | None:
+                if not name.startswith("binaries/linux64/"):
+                    return raw
+                return {"garbage": b"garbage" * 1000, "truncated": raw[:4096], "empty": b"",
+                        "other cpu": raw[:18] + b"\xb7\x00" + raw[20:], "32-bit": raw[:4] + b"\x01" + raw[5:],
+                        "big-endian": raw[:5] + b"\x02" + raw[6:], "not a shared object": raw[:16] + b"\x02\x00"
+                        + raw[18:], "zeros in the middle": raw[:len(raw) // 2] + bytes(4096) + raw[len(raw) // 2
+                                                                                                     + 4096:],
+                        "no binary": None}[how]
+            copy_zip(src, d / "bad.fmu", edit)
+        return setup
+
+    def md(text: str | None) -> Callable[[Path], None]:
+        return lambda d: copy_zip(src, d / "bad.fmu", lambda n, b: (None if text is None else text.encode())
+                                  if n == "modelDescription.xml" else b)
+
+    def archive(kind: str) -> Callable[[Path], None]:
+        def setup(d: Path) -> None:
+            path = d / "bad.fmu"
+            if kind == "traversal":
+                copy_zip(src, path, extra={"../../escaped.txt": b"x"})
+            elif kind == "absolute":
+                copy_zip(src, path, extra={"/tmp/mre-corpus-escaped.txt": b"x"})
+            elif kind == "symlink":
+                info = zipfile.ZipInfo("resources/link")
+                info.external_attr = 0o120777 << 16
+                copy_zip(src, path, infos=[(info, b"/etc/passwd")])
+            elif kind == "bomb":
+                copy_zip(src, path)
+                with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
+                    zeros_entry(z, "resources/zeros.bin", 1100)
+            elif kind == "description bomb":
+                copy_zip(src, path, lambda n, b: None if n == "modelDescription.xml" else b)
+                with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
+                    zeros_entry(z, "modelDescription.xml", 100)
+            elif kind == "20000 entries":
+                copy_zip(src, path, extra={f"resources/e{k}": b"" for k in range(20_000)})
+            elif kind == "truncated zip":
+                path.write_bytes(src.read_bytes()[: src.stat().st_size // 2])
+            elif kind == "corrupt CRC":
+                data = bytearray(src.read_bytes())
+                k = data.find(b"\x7fELF")
+                data[k + 5000: k + 5010] = b"0123456789"  # inside the stored (deflated) binary: CRC mismatch
+                path.write_bytes(bytes(data))
+            elif kind == "zip without description":
+                with zipfile.ZipFile(path, "w") as z:
+                    z.writestr("other.txt", "x")
+            elif kind == "plain text":
+                path.write_text("not a zip")
+            elif kind == "empty file":
+                path.write_bytes(b"")
+            elif kind == "a folder":
+                path.mkdir()
+            elif kind == "a FIFO":
+                os.mkfifo(path)
+        return setup
+
+    fmi1 = ('<?xml version="1.0"?><fmiModelDescription fmiVersion="1.0" modelName="m" modelIdentifier="m" '
+            'guid="{1}" numberOfContinuousStates="0" numberOfEventIndicators="0"><ModelVariables/>'
+            '</fmiModelDescription>')
+    me_only = ('<?xml version="1.0"?><fmiModelDescription fmiVersion="2.0" modelName="m" guid="{1}">'
+               '<ModelExchange modelIdentifier="m"/><ModelVariables/><ModelStructure/></fmiModelDescription>')
+    xxe = ('<?xml version="1.0"?><!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>'
+           '<fmiModelDescription fmiVersion="2.0" modelName="&e;" guid="{1}"><CoSimulation modelIdentifier="m"/>'
+           '<ModelVariables/><ModelStructure/></fmiModelDescription>')
+    entity_bomb = ('<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "aaaaaaaaaa">' + "".join(
+        f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdefgh", "bcdefghi", strict=True))
+        + ']><fmiModelDescription fmiVersion="2.0" modelName="&i;" guid="{1}"><CoSimulation modelIdentifier="m"/>'
+        '<ModelVariables/><ModelStructure/></fmiModelDescription>')
+    setups: dict[str, Callable[[Path], None]] = {f"binary: {h}": binary(h) for h in (
+        "garbage", "truncated", "empty", "other cpu", "32-bit", "big-endian", "not a shared object",
+        "zeros in the middle", "no binary")}
+    setups.update({"description: FMI 1.0": md(fmi1), "description: model exchange only": md(me_only),
+                   "description: not XML": md("<<<"), "description: empty": md(""),
+                   "description: missing": md(None), "description: external entity": md(xxe),
+                   "description: entity expansion": md(entity_bomb),
+                   "description: wrong root": md('<?xml version="1.0"?><x/>')})
+    setups.update({f"archive: {k}": archive(k) for k in (
+        "traversal", "absolute", "symlink", "bomb", "description bomb", "20000 entries", "truncated zip",
+        "corrupt CRC", "zip without description", "plain text", "empty file", "a folder", "a FIFO")})
+    cases = [Case("FMUs", name, "run.py", [str(SC / "elcentro.yaml"), "--set", SHORT, "--set",
+                                           "units.isolator.fmu=bad.fmu", "--out", "out", "--quiet", "--no-plots"],
+                  setup) for name, setup in setups.items()]
+    for name, path in (("/dev/zero", "/dev/zero"), ("missing", "nowhere.fmu"), ("/etc/passwd", "/etc/passwd")):
+        cases.append(Case("FMUs", f"FMU is {name}", "run.py", [str(SC / "elcentro.yaml"), "--set", SHORT, "--set",
+                                                              f"units.isolator.fmu={path}", "--out", "out",
+                                                              "--quiet"]))
+    return cases
+
+
+def ssp_cases(rng: random.Random, n: int, package: Path) -> list[Case]:
+    """An exported SSP with one attribute changed, and hostile archives."""
+    from lxml import etree
+
+    values = ["abc", "INF", "-INF", "NaN", "", "1e400", "../../x", "/etc/passwd", "0", "-1", "true", "1_0",
+              "resources/../../x", "\xe9", "1e-3", "x" * 3000]
+    with zipfile.ZipFile(package) as z:
+        members = {n: z.read(n) for n in z.namelist() if n.endswith((".ssd", ".ssv"))}
+    out = []
+    for k in range(n):
+        member = rng.choice(sorted(members))
+        root = etree.fromstring(members[member])
+        elements = [e for e in root.iter() if isinstance(e.tag, str) and (e.attrib or (e.text and e.text.strip()))]
+        element = rng.choice(elements)
+        attrs = [*element.attrib, *(["#text"] if element.text and element.text.strip() else [])]
+        attr = rng.choice(attrs)
+        op = rng.choice(["set", "set", "set", "delete"])
+        value = rng.choice(values)
+        if attr == "#text":
+            element.text = value if op == "set" else ""
+        elif op == "set":
+            element.set(attr, value)
+        else:
+            del element.attrib[attr]
+        data = etree.tostring(root)
+        tag = etree.QName(element).localname
+        label = f"{k:03d} {member.rsplit('/', 1)[-1]} {tag}@{attr} {op}" + (f" {value!r}"[:30] if op == "set" else "")
+
+        def setup(d: Path, member: str = member, data: bytes = data) -> None:
+            copy_zip(package, d / "p.ssp", lambda name, raw: data if name == member else raw)
+        tool = rng.choice(["run.py", "run.py", "ssp.py"])
+        argv = ["p.ssp", "--out", "out", "--quiet", "--no-plots"] if tool == "run.py" else ["check", "p.ssp"]
+        out.append(Case("SSP: one attribute changed", label, tool, argv, setup,
+                        out="out" if tool == "run.py" else None))
+
+    def hostile(kind: str) -> Callable[[Path], None]:
+        def setup(d: Path) -> None:
+            path = d / "p.ssp"
+            ssd = lambda f: (lambda n, b: f(b) if n.endswith(".ssd") else b)  # noqa: E731
+            if kind == "traversal":
+                copy_zip(package, path, extra={"../../escaped.txt": b"x"})
+            elif kind == "absolute":
+                copy_zip(package, path, extra={"/tmp/mre-corpus-escaped.txt": b"x"})
+            elif kind == "symlink":
+                info = zipfile.ZipInfo("resources/link")
+                info.external_attr = 0o120777 << 16
+                copy_zip(package, path, infos=[(info, b"/etc/passwd")])
+            elif kind == "bomb":
+                copy_zip(package, path)
+                with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
+                    zeros_entry(z, "resources/zeros.bin", 1100)
+            elif kind == "20000 entries":
+                copy_zip(package, path, extra={f"resources/e{k}": b"" for k in range(20_000)})
+            elif kind == "no SSD":
+                copy_zip(package, path, lambda n, b: None if n.endswith(".ssd") else b)
+            elif kind == "truncated":
+                path.write_bytes(package.read_bytes()[: package.stat().st_size // 2])
+            elif kind == "not a zip":
+                path.write_text("plain text")
+            elif kind == "FMU removed":
+                copy_zip(package, path, lambda n, b: None if n.endswith("MreIsolator.fmu") else b)
+            elif kind == "record removed":
+                copy_zip(package, path, lambda n, b: None if n.endswith(".csv") else b)
+            elif kind == "record replaced by garbage":
+                copy_zip(package, path, lambda n, b: b"0,0\n0.01,1_0\n" if n.endswith(".csv") else b)
+            elif kind == "settings set units":
+                copy_zip(package, path, ssd(lambda b: b.replace(
+                    b'"format": 1,', b'"format": 1, "units": {"x": {"fmu": "/etc/passwd"}},')))
+            elif kind == "settings set name":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'"format": 1,', b'"format": 1, "name": "../x",')))
+            elif kind == "settings set stop_time":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'"step":', b'"stop_time": 1e9, "step":')))
+            elif kind == "settings not JSON":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'"format": 1,', b'"format": 1,,,')))
+            elif kind == "settings a list":
+                copy_zip(package, path, ssd(lambda b: b.replace(b"<mre:Settings>{", b"<mre:Settings>[{").replace(
+                    b"}</mre:Settings>", b"}]</mre:Settings>")))
+            elif kind == "results outside":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'"dir": "runs"', b'"dir": "/tmp/outside"')))
+            elif kind == "results with ..":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'"dir": "runs"', b'"dir": "../../up"')))
+            elif kind == "name with /":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'name="elcentro"', b'name="../../escape"', 1)))
+            elif kind == "stopTime INF":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'stopTime="0.05"', b'stopTime="INF"')))
+            elif kind == "stopTime 1e9":
+                copy_zip(package, path, ssd(lambda b: b.replace(b'stopTime="0.05"', b'stopTime="1e9"')))
+            elif kind == "external entity":
+                copy_zip(package, path, ssd(lambda b: b.replace(
+                    b"<?xml version='1.0' encoding='UTF-8'?>",
+                    b"<?xml version='1.0' encoding='UTF-8'?><!DOCTYPE x [<!ENTITY e SYSTEM 'file:///etc/passwd'>]>"
+                ).replace(b'name="elcentro"', b'name="&e;"', 1)))
+            elif kind == "entity expansion":
+                ents = "<!ENTITY a 'aaaaaaaaaa'>" + "".join(
+                    f"<!ENTITY {c} '{('&' + p + ';') * 10}'>" for p, c in zip("abcdefgh", "bcdefghi", strict=True))
+                copy_zip(package, path, ssd(lambda b: b.replace(
+                    b"<?xml version='1.0' encoding='UTF-8'?>",
+                    f"<?xml version='1.0' encoding='UTF-8'?><!DOCTYPE x [{ents}]>".encode()).replace(
+                    b'description="', b'description="&i;', 1)))
+            elif kind == "SSD not XML":
+                copy_zip(package, path, ssd(lambda b: b"<<<not xml"))
+            elif kind == "SSD 70 MB":
+                copy_zip(package, path, ssd(lambda b: b.replace(b"</ssd:SystemStructureDescription>",
+                                                                b"<!--" + b"x" * (70 << 20) + b"-->"
+                                                                b"</ssd:SystemStructureDescription>")))
+        return setup
+
+    kinds = ["traversal", "absolute", "symlink", "bomb", "20000 entries", "no SSD", "truncated", "not a zip",
+             "FMU removed", "record removed", "record replaced by garbage", "settings set units", "settings set name",
+             "settings set stop_time", "settings not JSON", "settings a list", "results outside", "results with ..",
+             "name with /", "stopTime INF", "stopTime 1e9", "external entity", "entity expansion", "SSD not XML",
+             "SSD 70 MB"]
+    for kind in kinds:
+        out.append(Case("SSP: hostile packages", kind, "run.py", ["p.ssp", "--out", "out", "--quiet", "--no-plots"],
+                        hostile(kind)))
+    for kind in ("traversal", "bomb", "settings set units", "stopTime INF", "entity expansion"):
+        out.append(Case("SSP: hostile packages", f"check: {kind}", "ssp.py", ["check", "p.ssp"], hostile(kind),
+                        out=None))
+    return out
+
+
+def output_cases() -> list[Case]:
+    """Output folders that are taken, unusable, full or read-only."""
+    elc = [str(SC / "elcentro.yaml"), "--set", SHORT, "--quiet", "--no-plots"]
+    out = [
+        Case("output folders", "--out below a file", "run.py", [*elc, "--out", f"{PRECIOUS}/sub"], out=None),
+        Case("output folders", "--out in /proc", "run.py", [*elc, "--out", "/proc/mre-corpus/run"], out=None),
+        Case("output folders", "--out is a file", "run.py", [*elc, "--out", PRECIOUS], out=None),
+        Case("output folders", "--out is a non-empty folder", "run.py", [*elc, "--out", "prev"],
+             lambda d: _previous_run(d / "prev"), out=None),
+        Case("output folders", "--out is an empty folder", "run.py", [*elc, "--out", "out"],
+             lambda d: (d / "out").mkdir()),
+        Case("output folders", "--out is a symlink to a full folder", "run.py", [*elc, "--out", "link"],
+             lambda d: (_previous_run(d / "prev"), os.symlink("prev", d / "link")), out=None),
+        Case("output folders", "--out is /dev/null", "run.py", [*elc, "--out", "/dev/null"], out=None),
+        Case("output folders", "results.dir below a file", "run.py", [*elc, "--set", f"results.dir={PRECIOUS}/x"],
+             out=None),
+        Case("output folders", "results.dir in /proc", "run.py", [*elc, "--set", "results.dir=/proc/x"], out=None),
+        Case("output folders", "results.dir holds a previous run", "run.py", [*elc, "--set", "results.dir=runs"],
+             lambda d: _previous_run(d / "runs" / "elcentro-previous"), out="runs"),
+    ]
+    if IS_ROOT:
+        out += [
+            Case("full or read-only disks", "1 MiB disk fills while writing results", "run.py",
+                 [str(SC / "kobe.yaml"), "--set", "simulation.stop_time=20", "--out", "out/run", "--quiet",
+                  "--no-plots"], mount="full"),
+            Case("full or read-only disks", "1 MiB disk fills while writing plots", "run.py",
+                 [str(SC / "elcentro.yaml"), "--set", "simulation.stop_time=2.5", "--out", "out/run", "--quiet"],
+                 mount="full"),
+            Case("full or read-only disks", "disk full before the run", "run.py",
+                 [*elc, "--out", "out/run"], mount="full-before"),
+            Case("full or read-only disks", "read-only --out", "run.py", [*elc, "--out", "out/run"],
+                 mount="readonly"),
+            Case("full or read-only disks", "read-only results.dir", "run.py",
+                 [*elc, "--set", "results.dir=out/runs"], mount="readonly"),
+            Case("full or read-only disks", "ssp export to a read-only folder", "ssp.py",
+                 ["export", str(SC / "elcentro.yaml"), "out/x.ssp"], mount="readonly"),
+            Case("full or read-only disks", "ssp export to a 256 KiB disk", "ssp.py",
+                 ["export", str(SC / "kobe.yaml"), "out/x.ssp"], mount="full", mount_size="256K"),
+            Case("full or read-only disks", "build into a read-only folder", "build", ["--dest", "out/fmus"],
+                 mount="readonly"),
+            Case("full or read-only disks", "tune.py --out on a read-only folder", "tune.py",
+                 [str(SC / "case_study.yaml"), "--out", "out/gains.yaml", "--set", "tuning.max_evals=2",
+                  "--quiet"], mount="readonly", timeout=600),
+            Case("full or read-only disks", "identify.py --out on a read-only folder", "identify.py",
+                 ["id.yaml", "--out", "out/id", "--no-progress"], _id_config, mount="readonly"),
+        ]
+    else:
+        out.append(Case("full or read-only disks", "writes fail with EFBIG (RLIMIT_FSIZE)", "run.py",
+                        [str(SC / "kobe.yaml"), "--set", "simulation.stop_time=20", "--out", "out", "--quiet",
+                         "--no-plots"], mount="fsize"))
+    return out
+
+
+def _previous_run(folder: Path) -> None:
+    folder.mkdir(parents=True)
+    (folder / "summary.json").write_text('{"complete": true, "note": "a previous run: must survive"}')
+
+
+def _id_config(d: Path) -> None:
+    (d / "id.yaml").write_text(yaml.safe_dump({
+        "data": {"conditions": [[4, 2, 0], [4, 2, 3]], "synthetic": {"repeats": 1}},
+        "identifiers": ["hyperbolic-structured"], "bouc_wen_joint": {"enabled": False}, "figures": False}))
+
+
+def fault_cases() -> list[Case]:
+    """Signals during start-up and during a run; concurrent runs into one --out."""
+    out = []
+    kobe = [str(SC / "kobe.yaml"), "--out", "out", "--quiet", "--no-plots"]
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        for delay in (0.15, 0.3, 0.5, 0.8, 1.2, 1.8, 2.5, 3.5, 5.0, 7.0):
+            out.append(Case("signals", f"{sig.name} after {delay} s (Kobe, 150 s)", "run.py", kobe,
+                            signal_after=(sig, delay), timeout=300))
+    out.append(Case("signals", "SIGINT during an SSP run", "run.py", ["p.ssp", "--out", "out", "--quiet"],
+                    lambda d: shutil.copy(_PACKAGE_LONG, d / "p.ssp"), signal_after=(signal.SIGINT, 3.0)))
+    out.append(Case("signals", "SIGTERM to ssp.py export", "ssp.py", ["export", str(SC / "kobe.yaml"), "x.ssp"],
+                    signal_after=(signal.SIGTERM, 1.0), out="x.ssp"))
+    out.append(Case("signals", "SIGINT to study.py while starting", "study.py",
+                    [str(SC / "case_study.yaml"), "--out", "out", "--quiet"], signal_after=(signal.SIGINT, 0.8)))
+    out.append(Case("signals", "SIGTERM to study.py while running", "study.py",
+                    [str(SC / "case_study.yaml"), "--out", "out", "--quiet", "--workers", "1"],
+                    signal_after=(signal.SIGTERM, 6.0), timeout=300))
+    out.append(Case("signals", "SIGINT to identify.py", "identify.py", ["id.yaml", "--out", "out", "--no-progress"],
+                    _id_config, signal_after=(signal.SIGINT, 2.0)))
+    out.append(Case("signals", "SIGTERM to tune.py", "tune.py", [str(SC / "case_study.yaml"), "--out", "g.yaml",
+                                                                 "--quiet"], signal_after=(signal.SIGTERM, 3.0),
+                    out="g.yaml"))
+    for k, (n, existing) in enumerate([(2, False), (2, True), (3, False), (4, False), (2, False), (3, True)]):
+        out.append(Case("concurrent runs, one --out", f"{n} runs{' into an empty folder' if existing else ''} #{k}",
+                        "run.py", [str(SC / "elcentro.yaml"), "--set", "simulation.stop_time=0.5", "--out", "out",
+                                   "--quiet", "--no-plots"], (lambda d: (d / "out").mkdir()) if existing else None,
+                        copies=n))
+    return out
+
+
+_PACKAGE_LONG: Path = Path()
+
+
+def other_tool_cases() -> list[Case]:
+    """study.py, tune.py, identify.py, ssp.py and the build with hostile files and arguments."""
+    out = []
+    files: dict[str, Callable[[Path], None]] = {
+        "latin-1": write_bytes("f.yaml", b"name: caf\xe9\n"),
+        "deep nesting": write_bytes("f.yaml", ("a: " + "[" * 5000 + "]" * 5000).encode()),
+        "billion laughs": write_bytes("f.yaml", ("a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+            f"{c}: &{c} [{', '.join([f'*{p}'] * 10)}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True))
+        ).encode()),
+        "recursive alias": write_bytes("f.yaml", b"a: &a [*a]\n"),
+        "a FIFO": lambda d: os.mkfifo(d / "f.yaml"),
+        "a folder": lambda d: (d / "f.yaml").mkdir(),
+        "empty": write_bytes("f.yaml", b""),
+        "a list": write_bytes("f.yaml", b"- 1\n"),
+        "a run scenario": lambda d: shutil.copy(SC / "elcentro.yaml", d / "f.yaml"),
+    }
+    for tool, extra in (("study.py", ["--out", "out", "--quiet"]), ("tune.py", ["--out", "g.yaml", "--quiet"]),
+                        ("identify.py", ["--out", "out", "--no-progress"])):
+        for name, setup in files.items():
+            out.append(Case(f"other tools: {tool.removesuffix('.py')}", f"{name}", tool, ["f.yaml", *extra], setup,
+                            out="g.yaml" if tool == "tune.py" else "out"))
+        out.append(Case(f"other tools: {tool.removesuffix('.py')}", "/dev/zero", tool, ["/dev/zero", *extra],
+                        out="g.yaml" if tool == "tune.py" else "out"))
+    study = str(SC / "case_study.yaml")
+    for args in (["--workers", "0"], ["--set", "records=[]"], ["--set", "strategies=[magic]"],
+                 ["--set", "x=&a [*a]"], ["--set", "workers=maybe"], ["--set", "name=../x"], ["--out", f"{PRECIOUS}/x"],
+                 ["--report", "nowhere"], ["--report", "."], ["--set", "overrides=[simulation.stop_time=.inf]"]):
+        out.append(Case("other tools: study", " ".join(args)[:60], "study.py", [study, *args, "--quiet"]))
+    for args in (["--out", PRECIOUS], ["--set", "tuning.record=nowhere"], ["--set", "tuning.max_evals=true"],
+                 ["--set", "x=&a [*a]"], ["--out", f"{PRECIOUS}/x", "--force", "--set", "tuning.max_evals=2"]):
+        out.append(Case("other tools: tune", " ".join(args)[:60], "tune.py", [study, *args, "--quiet"],
+                        out=None))
+    for name, cfg in (("unknown key", {"nonsense": 1}), ("conditions a string", {"data": {"conditions": "x"}}),
+                      ("negative repeats", {"data": {"synthetic": {"repeats": -1}}}),
+                      ("unknown identifier", {"identifiers": ["magic"]}), ("a boolean", {"figures": "maybe"})):
+        out.append(Case("other tools: identify", name, "identify.py", ["id.yaml", "--out", "out", "--no-progress"],
+                        lambda d, cfg=cfg: (d / "id.yaml").write_text(yaml.safe_dump(cfg))))
+    out.append(Case("other tools: identify", "--out is the working folder with --overwrite", "identify.py",
+                    ["id.yaml", "--out", ".", "--overwrite", "--no-progress"], _id_config, out=None))
+    out.append(Case("other tools: identify", "--out is a file", "identify.py",
+                    ["id.yaml", "--out", PRECIOUS, "--no-progress"], _id_config, out=None))
+    for name, argv in (("export to a folder", ["export", str(SC / "elcentro.yaml"), "."]),
+                       ("export over a file", ["export", str(SC / "elcentro.yaml"), PRECIOUS]),
+                       ("export below a file", ["export", str(SC / "elcentro.yaml"), f"{PRECIOUS}/x.ssp"]),
+                       ("export to /proc", ["export", str(SC / "elcentro.yaml"), "/proc/x.ssp"]),
+                       ("export a FIFO", ["export", "f.yaml", "x.ssp"]),
+                       ("export to /dev/null with --force", ["export", str(SC / "elcentro.yaml"), "/dev/null",
+                                                              "--force"]),
+                       ("check a YAML", ["check", str(SC / "elcentro.yaml")]), ("check /dev/zero", ["check",
+                                                                                                    "/dev/zero"]),
+                       ("check a FIFO", ["check", "f.yaml"]), ("no command", []), ("unknown command", ["nope"])):
+        out.append(Case("other tools: ssp", name, "ssp.py", argv,
+                        (lambda d: os.mkfifo(d / "f.yaml")) if "FIFO" in name else None, out="x.ssp"))
+    for name, argv in (("--dest below a file", ["--dest", f"{PRECIOUS}/sub"]), ("--dest in /proc", ["--dest",
+                                                                                                  "/proc/x"]),
+                       ("--dest is a file", ["--dest", PRECIOUS]), ("--storeys 0", ["--storeys", "0"]),
+                       ("--storeys -3", ["--storeys", "-3"]), ("--storeys 10000", ["--storeys", "10000"]),
+                       ("--storeys x", ["--storeys", "x"]), ("unknown option", ["--nope"])):
+        out.append(Case("other tools: build", name, "build", argv, out=None))
+    return out
+
+
+# -- running and classifying ----------------------------------------------------------------------------
+
+_MOUNT_LOCK = threading.Lock()
+
+
+def _mount(folder: Path, kind: str, size: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)], check=True)
+    if kind == "full-before":
+        with open(folder / "filler", "wb") as f:
+            try:
+                while True:
+                    f.write(bytes(65536))
+                    f.flush()
+            except OSError:
+                pass
+    if kind == "readonly":
+        subprocess.run(["mount", "-o", "remount,ro", str(folder)], check=True)
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[int, int, bool]]:
+    """Every path under ``folder``: (size, mtime, is a regular file); symbolic links are not followed."""
+    out = {}
+    for root, dirs, files in os.walk(folder):
+        for name in files + dirs:
+            p = Path(root) / name
+            try:
+                st = p.lstat()
+            except OSError:
+                continue
+            out[str(p.relative_to(folder))] = (st.st_size, int(st.st_mtime_ns), stat.S_ISREG(st.st_mode))
+    return out
+
+
+def _check_run_folder(folder: Path, code: int, reasons: list[str]) -> None:
+    """A run folder may look complete only if it is: summary complete <=> every file whole."""
+    summary_path = folder / "summary.json"
+    if not summary_path.is_file():
+        return
+    try:
+        summary = json.loads(summary_path.read_text())
+    except ValueError:
+        reasons.append("summary.json is not valid JSON (half-written)")
+        return
+    if summary.get("complete") is True:
+        if code != 0:
+            reasons.append(f"summary.json says complete but the exit code is {code}")
+        try:
+            manifest = json.loads((folder / "manifest.json").read_text())
+            with open(folder / "timeseries.csv") as f:
+                rows = sum(1 for _ in f)
+        except (OSError, ValueError) as exc:
+            reasons.append(f"complete summary but {exc}")
+            return
+        if manifest.get("complete") is not True or rows != summary.get("steps_done", -10) + 2:
+            reasons.append(f"complete summary but manifest/timeseries disagree ({rows} rows)")
+    elif code == 0:
+        reasons.append("exit 0 but summary.json says incomplete")
+
+
+def run_case(case: Case, base: Path, index: int) -> Result:
+    folder = base / f"{index:04d}"
+    work = folder / "work"
+    tmp = folder / "tmp"
+    crash = folder / "crash"
+    for d in (work, tmp, crash):
+        d.mkdir(parents=True)
+    (work / PRECIOUS).write_text("years of work\n")
+    reasons: list[str] = []
+    if case.setup is not None:
+        case.setup(work)
+    mounted: Path | None = None
+    preexec = None
+    if case.mount in ("full", "full-before", "readonly"):
+        mounted = work / "out"
+        with _MOUNT_LOCK:
+            _mount(mounted, case.mount, case.mount_size)
+    elif case.mount == "fsize":
+        def preexec() -> None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
+    before = _snapshot(work)
+    precious = {k: v for k, v in before.items() if v[2] and (k == PRECIOUS or k.startswith(("prev", "runs")))}
+    env = {**os.environ, "TMPDIR": str(tmp), "MRE_COSIM_CRASH_DIR": str(crash), "PYTHONDONTWRITEBYTECODE": "1"}
+    cmd = [*TOOLS[case.tool], *case.argv]
+    t0 = time.monotonic()
+    procs = [subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              errors="replace", preexec_fn=preexec) for _ in range(case.copies)]
+    if case.signal_after is not None:
+        sig, delay = case.signal_after
+        time.sleep(delay)
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(sig)
+    codes, errs = [], []
+    for p in procs:
+        try:
+            out_text, err_text = p.communicate(timeout=case.timeout)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            out_text, err_text = p.communicate()
+            reasons.append(f"hung: killed after {case.timeout:.0f} s")
+        codes.append(p.returncode)
+        errs.append(err_text)
+        text = out_text + err_text
+        if "Traceback" in text or "Fatal Python error" in text:
+            reasons.append("a traceback was printed")
+        if p.returncode != 0 and not err_text.strip():
+            reasons.append("failed without a message")
+        if p.returncode not in DOCUMENTED[case.tool]:
+            reasons.append(f"exit code {p.returncode} is not documented" + (" (3: an internal error, a bug)"
+                                                                              if p.returncode == 3 else ""))
+    seconds = time.monotonic() - t0
+    after = _snapshot(work)
+    data_loss = any(after.get(k, (None, None))[0] != v[0] for k, v in precious.items())
+    if case.copies > 1:
+        if sorted(codes) != [0] + [2] * (case.copies - 1):
+            reasons.append(f"concurrent runs ended {sorted(codes)}, expected one 0 and the rest 2")
+    new = {k for k in after if k not in before}
+    changed = {k for k in before if k in after and after[k] != before[k] and k != "out"}
+    top = {k.split("/")[0] for k in new}
+    allowed_top = {case.out} if case.out else set()
+    for code in set(codes):
+        if code in (2, 130) and case.copies == 1 and new:
+            reasons.append(f"exit {code} but wrote {sorted(new)[:5]}")
+    if top - allowed_top - {"out"} if mounted is not None else top - allowed_top:
+        reasons.append(f"wrote outside the output folder: {sorted(top - allowed_top)[:5]}")
+    if changed - {k for k in changed if k.startswith(("out/", "runs/"))} - ({"runs"} if case.out == "runs" else set()):
+        reasons.append(f"changed existing files: {sorted(changed)[:5]}")
+    leftovers = sorted(set(os.listdir(tmp)) - SHARED_TMP)
+    if leftovers:
+        reasons.append(f"temporary files left: {leftovers[:3]}")
+    if os.listdir(crash):
+        reasons.append("an internal error (crash log written)")
+    for key in sorted(new):
+        if key.endswith("summary.json"):  # a run folder this case created
+            _check_run_folder((work / key).parent, 0 if 0 in codes else max(codes), reasons)
+    for escaped in (folder / "escaped.txt", base / "escaped.txt", Path("/tmp/mre-corpus-escaped.txt")):
+        if escaped.exists():
+            reasons.append(f"an archive entry escaped to {escaped}")
+            escaped.unlink()
+    if mounted is not None:
+        with _MOUNT_LOCK:
+            subprocess.run(["umount", str(mounted)], check=False)
+    stderr = "\n".join(e.strip() for e in errs if e.strip())[-600:]
+    return Result(case.cls, case.name, case.tool, codes, not reasons and not data_loss, data_loss, reasons,
+                  round(seconds, 2), stderr)
+
+
+def _run_case(case: Case, base: Path, index: int) -> Result:
+    """run_case, a failure of the corpus itself reported as such (not clean, so it is looked at)."""
+    try:
+        return run_case(case, base, index)
+    except Exception as exc:  # the harness itself failed
+        return Result(case.cls, case.name, case.tool, [], False, False, [f"corpus harness error: {exc!r}"])
+
+
+def build_cases(seed: int, base: Path) -> list[Case]:
+    global _PACKAGE_LONG
+    from orchestration.interop.ssp import export_ssp
+    from orchestration.project import plan_scenario
+
+    rng = random.Random(seed)
+    package = export_ssp(plan_scenario(SC / "elcentro.yaml", (SHORT,)), base / "elcentro.ssp")
+    _PACKAGE_LONG = export_ssp(plan_scenario(SC / "kobe.yaml"), base / "kobe.ssp")
+    return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
+            *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases()]
+
+
+def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:
+    by_class: dict[str, list[Result]] = defaultdict(list)
+    for r in results:
+        by_class[r.cls].append(r)
+    lines = ["<!-- corpus:begin -->",
+             f"Measured with `{command}` ({len(results)} cases, {seconds / 60:.1f} min on this project's 2-core "
+             "machine):", "",
+             "| class | cases | clean | not clean | data loss | exit codes seen |", "|---|---:|---:|---:|---:|---|"]
+    for cls, rs in by_class.items():
+        codes = Counter(c for r in rs for c in r.codes)
+        seen = ", ".join(f"{c}: {n}" for c, n in sorted(codes.items()))
+        clean = sum(r.clean for r in rs)
+        lines.append(f"| {cls} | {len(rs)} | {clean} | {len(rs) - clean} | {sum(r.data_loss for r in rs)} | {seen} |")
+    total_clean = sum(r.clean for r in results)
+    lines += [f"| **all** | **{len(results)}** | **{total_clean}** | **{len(results) - total_clean}** | "
+              f"**{sum(r.data_loss for r in results)}** | |", "",
+              f"Clean: {100 * total_clean / len(results):.1f} %; data loss: {sum(r.data_loss for r in results)} cases."]
+    bad = [r for r in results if not r.clean]
+    if bad:
+        lines += ["", "Cases that were not clean:", ""]
+        lines += [f"* {r.cls} / {r.name} ({r.tool}, exit {r.codes}): {'; '.join(r.reasons)}" for r in bad]
+    lines.append("<!-- corpus:end -->")
+    block = "\n".join(lines)
+    text = report.read_text() if report.exists() else ""
+    if "<!-- corpus:begin -->" in text and "<!-- corpus:end -->" in text:
+        head, rest = text.split("<!-- corpus:begin -->", 1)
+        text = head + block + rest.split("<!-- corpus:end -->", 1)[1]
+    else:
+        text = text + ("\n" if text else "") + block + "\n"
+    report.write_text(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", type=int, default=2, help="cases run at a time")
+    parser.add_argument("--only", nargs="*", default=[], help="run only the classes whose name contains one of these")
+    parser.add_argument("--seed", type=int, default=13)
+    parser.add_argument("--report", type=Path, default=PROJECT / "docs" / "reliability.md")
+    parser.add_argument("--jsonl", type=Path, default=None, help="also write every case's outcome here (JSON lines)")
+    parser.add_argument("--keep", action="store_true", help="keep the case folders")
+    args = parser.parse_args(argv)
+    subprocess.run([PY, "-m", "components.build"], check=True, stdout=subprocess.DEVNULL)  # no build races later
+    base = Path(tempfile.mkdtemp(prefix="mre-corpus-"))
+    started = time.monotonic()
+    try:
+        cases = build_cases(args.seed, base)
+        if args.only:
+            cases = [c for c in cases if any(o in c.cls for o in args.only)]
+        print(f"{len(cases)} cases in {base}", flush=True)
+        results: list[Result] = []
+        with ThreadPoolExecutor(args.workers) as pool:
+            futures = [pool.submit(_run_case, c, base / "cases", k) for k, c in enumerate(cases)]
+            for k, fut in enumerate(futures):
+                r = fut.result()
+                results.append(r)
+                mark = "ok " if r.clean else "BAD"
+                print(f"[{k + 1:3d}/{len(cases)}] {mark} {r.cls} / {r.name} -> {r.codes} {'; '.join(r.reasons)}",
+                      flush=True)
+        seconds = time.monotonic() - started
+        command = "python benchmarks/reliability_corpus.py" + (f" --only {' '.join(args.only)}" if args.only else "")
+        write_report(results, args.report, command, seconds)
+        if args.jsonl is not None:
+            args.jsonl.write_text("".join(json.dumps(asdict(r)) + "\n" for r in results))
+        clean = sum(r.clean for r in results)
+        print(f"{clean}/{len(results)} clean ({100 * clean / len(results):.1f} %), "
+              f"{sum(r.data_loss for r in results)} with data loss, {seconds / 60:.1f} min")
+        return 0
+    finally:
+        for line in Path("/proc/mounts").read_text().splitlines() if IS_ROOT else []:
+            where = line.split()[1]
+            if where.startswith(str(base)):
+                subprocess.run(["umount", where], check=False)
+        if not args.keep:
+            for root, dirs, _ in os.walk(base):
+                for d in dirs:
+                    os.chmod(os.path.join(root, d), 0o755)
+            shutil.rmtree(base, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

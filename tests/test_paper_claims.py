@@ -1,0 +1,56 @@
+"""The paper's case-study claims as checks (orchestration.studies.claims), on hand-made peaks."""
+
+from __future__ import annotations
+
+from orchestration.studies.claims import check_claims
+
+
+def peaks(acc: list[float], drift: list[float]) -> dict[str, float]:
+    m = {f"acc_{j}": a for j, a in enumerate(acc)} | {f"drift_{j}_mm": d for j, d in enumerate(drift, start=1)}
+    return m | {"drift_max_mm": max(drift)}
+
+
+def by_claim(checks, claim_start: str, record: str, strategy: str):
+    [found] = [c for c in checks if c.claim.startswith(claim_start) and c.record == record and c.strategy == strategy]
+    return found
+
+
+def test_profiles_rise_and_drop_with_height_within_the_tie():
+    metrics = {
+        ("a", "passive-off"): peaks([1.0, 2.0, 3.0, 4.0], [3.0, 2.0, 1.0]),   # both claims hold
+        ("a", "sosm"): peaks([1.0, 0.995, 3.0, 4.0], [3.0, 3.02, 1.0]),     # dips within 1 %: still hold
+        ("b", "passive-off"): peaks([5.0, 2.0, 3.0, 4.0], [1.0, 2.0, 1.0]),   # base peaks first; drift rises
+        ("b", "sosm"): peaks([1.0, 2.0, 3.0, 2.0], [3.0, 2.0, 1.0]),
+    }
+    checks = check_claims(metrics, ["a", "b"], ["passive-off", "sosm"], tie=0.01)
+    assert by_claim(checks, "floor peak acceleration rises", "a", "passive-off").holds is True
+    assert by_claim(checks, "floor peak acceleration rises", "a", "sosm").holds is True
+    assert by_claim(checks, "inter-storey drift drops", "a", "sosm").holds is True
+    assert by_claim(checks, "floor peak acceleration rises", "b", "passive-off").holds is False
+    assert by_claim(checks, "inter-storey drift drops", "b", "passive-off").holds is False
+    assert by_claim(checks, "floor peak acceleration rises", "b", "sosm").holds is False  # top below level 2
+
+
+def test_control_reduction_and_where_it_is_largest():
+    def pair(off_a3: float, sosm_a3: float):
+        return peaks([1, 1, 1, off_a3], [2, 1, 0.5]), peaks([1, 1, 1, sosm_a3], [1, 0.5, 0.2])
+
+    metrics = {}
+    for record, (off, ctl) in {"elcentro": pair(10, 2), "hachinohe": pair(10, 3), "kobe": pair(10, 9.95),
+                               "northridge": pair(10, 5)}.items():
+        metrics[(record, "passive-off")], metrics[(record, "sosm")] = off, ctl
+    records = ["elcentro", "hachinohe", "northridge", "kobe"]
+    checks = check_claims(metrics, records, ["passive-off", "sosm"])
+    assert by_claim(checks, "control reduces the top-floor", "elcentro", "sosm").holds is True
+    assert by_claim(checks, "control reduces the top-floor", "kobe", "sosm").holds is False  # 0.5 % is a tie
+    assert by_claim(checks, "control reduces the peak inter-storey", "kobe", "sosm").holds is True
+    assert by_claim(checks, "the benefit", "all", "sosm").holds is True  # 80 % and 70 % lead 50 % and 0.5 %
+    metrics[("northridge", "sosm")] = peaks([1, 1, 1, 1.0], [1, 0.5, 0.2])  # 90 %: northridge now leads
+    assert by_claim(check_claims(metrics, records, ["passive-off", "sosm"]), "the benefit", "all",
+                    "sosm").holds is False
+
+
+def test_a_missing_run_is_not_judged():
+    metrics = {("a", "passive-off"): peaks([1, 2, 3, 4], [3, 2, 1])}
+    checks = check_claims(metrics, ["a"], ["passive-off", "sosm"])
+    assert by_claim(checks, "control reduces the top-floor", "a", "sosm").holds is None
