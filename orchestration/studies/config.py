@@ -149,12 +149,8 @@ class LoadedStudy:
         return p if p.is_absolute() else (self.path.parent / p).resolve()
 
 
-def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy:
-    """Read and validate a study file; ``overrides`` are ``KEY=VALUE`` (VALUE as YAML). Raises ScenarioError."""
-    path = Path(path).resolve()
-    if not path.is_file():
-        raise ScenarioError(f"study file {path} does not exist")
-    data, lines = load_tree(path)
+def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:
+    """``KEY=VALUE`` (VALUE as YAML) into the study's data; ScenarioError for a malformed one."""
     for assignment in overrides:
         key, sep, text = assignment.partition("=")
         if not sep or not key.strip():
@@ -171,6 +167,15 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
                 raise ScenarioError(Problem(f"'{part}' is not a mapping", key, f"--set {assignment}"))
         node[parts[-1]] = value
         lines[tuple(parts)] = (f"--set {assignment}", None)
+
+
+def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy:
+    """Read and validate a study file; ``overrides`` are ``KEY=VALUE`` (VALUE as YAML). Raises ScenarioError."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ScenarioError(f"study file {path} does not exist")
+    data, lines = load_tree(path)
+    apply_overrides(data, lines, overrides)
     try:
         spec = StudySpec.model_validate(data)
     except ValidationError as exc:

@@ -13,12 +13,12 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.errors import Problem
 from orchestration.master.scenario import validation_problems
 from orchestration.master.yaml_source import load_tree
+from orchestration.studies.config import apply_overrides
 from orchestration.studies.suites import DEFAULT_PATTERNS, KNOWN_SUITES
 
 BUILTIN_STRATEGIES = ("passive-off", "passive-on", "sosm", "on-off")
@@ -167,24 +167,6 @@ class LoadedIda:
         return p if p.is_absolute() else (self.path.parent / p).resolve()
 
 
-def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:
-    """``KEY=VALUE`` (VALUE as YAML) into the study's data; ScenarioError for a malformed one."""
-    for assignment in overrides:
-        key, sep, text = assignment.partition("=")
-        if not sep or not key.strip():
-            raise ScenarioError(Problem("expected KEY=VALUE", "", f"--set {assignment}"))
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ScenarioError(Problem(f"value is not YAML: {exc}", key, f"--set {assignment}")) from None
-        node = data
-        parts = key.strip().split(".")
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ScenarioError(Problem(f"'{part}' is not a mapping", key, f"--set {assignment}"))
-        node[parts[-1]] = value
-        lines[tuple(parts)] = (f"--set {assignment}", None)
 
 
 def load_ida(path: Path | str, overrides: tuple[str, ...] = ()) -> tuple[LoadedIda | None, list[Problem], Any]:
