@@ -29,6 +29,21 @@ CLI = [sys.executable, str(PROJECT / "orchestration" / "ida.py")]
 ENV = {**os.environ, "MRE_COSIM_CODE_VERSION": "tests"}
 
 
+
+
+@pytest.fixture(autouse=True)
+def _signals_not_ignored():
+    """SIGINT and SIGTERM handled, not ignored, while a test runs: a runner started in the background
+    (`cmd &`) ignores SIGINT, and the tools started by a Ctrl-C test would inherit that."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in saved.items():
+        if handler is signal.SIG_IGN:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+    yield
+    for sig, handler in saved.items():
+        signal.signal(sig, handler)
+
+
 def ida_cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=ENV)
 
@@ -157,7 +172,8 @@ def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path):
     out = tmp_path / "study"
     study = small_study(tmp_path, intensity={"measure": "pga", "levels": [0.05, 0.1, 0.15]},
                         window={"tail_s": 1.0}, time_scale=0.5)
-    proc = subprocess.Popen([*CLI, str(study), "--out", str(out), "--quiet"], cwd=tmp_path, start_new_session=True,
+    proc = subprocess.Popen(
+        args=[*CLI, str(study), "--out", str(out), "--quiet"], cwd=tmp_path, start_new_session=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and len(list((out / "jobs").glob("*.json"))) < 2:

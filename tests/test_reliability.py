@@ -48,6 +48,19 @@ from .conftest import PROJECT
 RUN = [sys.executable, str(PROJECT / "orchestration" / "run.py")]
 
 
+@pytest.fixture(autouse=True)
+def _signals_not_ignored():
+    """SIGINT and SIGTERM handled, not ignored, while a test runs: a runner started in the background
+    (`cmd &`) ignores SIGINT, and the tools started by a Ctrl-C test would inherit that."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in saved.items():
+        if handler is signal.SIG_IGN:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+    yield
+    for sig, handler in saved.items():
+        signal.signal(sig, handler)
+
+
 @pytest.fixture(scope="module")
 def failing_fmu(tmp_path_factory) -> Path:
     source = FmuSource(PROJECT / "tests" / "units" / "failing_unit_fmu.py", "FailingUnit", ())
@@ -133,7 +146,8 @@ def test_divergence_limit_stops_the_run(tmp_path):
 
 def test_sigint_leaves_a_complete_readable_partial_run(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen([*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
+    proc = subprocess.Popen(
+        args=[*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
                              "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not out.exists() and time.monotonic() < deadline:  # the folder appears once the run starts
@@ -149,7 +163,8 @@ def test_sigint_leaves_a_complete_readable_partial_run(tmp_path):
 
 def test_sigterm_does_the_same(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen([*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
+    proc = subprocess.Popen(
+        args=[*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
                              "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not out.exists() and time.monotonic() < deadline:
@@ -653,7 +668,8 @@ def test_an_internal_error_is_exit_3_with_one_line_and_a_log(tmp_path, monkeypat
 
 @pytest.mark.parametrize("delay", [0.4, 0.9])
 def test_ctrl_c_while_starting_is_one_line_and_exit_130(tmp_path, delay):
-    proc = subprocess.Popen([*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(tmp_path / "out"),
+    proc = subprocess.Popen(
+        args=[*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(tmp_path / "out"),
                              "--quiet", "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=tmp_path)
     time.sleep(delay)
