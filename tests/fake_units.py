@@ -8,10 +8,18 @@ import numpy as np
 
 from orchestration.master.unit import UnitDescription, Variable
 
+_ZERO = {"Boolean": False, "String": ""}
+
 
 class FakeUnit:
-    """A unit with named real inputs/outputs. ``outputs_fn(state, inputs)`` gives the outputs,
-    ``step_fn(state, inputs, t, h)`` returns the new state. Every call is appended to ``calls``."""
+    """A unit with named inputs/outputs. ``outputs_fn(state, inputs)`` gives the outputs,
+    ``step_fn(state, inputs, t, h)`` returns the new state. Every call is appended to ``calls``.
+
+    Variables are Real unless ``types`` names another FMI type for them (``Integer``,
+    ``Boolean``, ``String``, ``Int64``, ...); those are read and set through ``get_values``/
+    ``set_values``, which check the type the master passes. ``discrete`` names Real outputs of
+    discrete variability.
+    """
 
     def __init__(
         self,
@@ -24,17 +32,24 @@ class FakeUnit:
         state: dict | None = None,
         calls: list | None = None,
         fail_at: float | None = None,
+        types: dict[str, str] | None = None,
+        discrete: Sequence[str] = (),
     ) -> None:
         self.name = name
+        types = dict(types or {})
         variables = {}
         for k, n in enumerate(inputs):
-            variables[n] = Variable(n, k, "Real", "input", "continuous", None, 0.0)
+            t = types.get(n, "Real")
+            variables[n] = Variable(n, k, t, "input", "continuous" if t == "Real" else "discrete", None,
+                                    _ZERO.get(t, 0.0 if t == "Real" else 0), declared_type=t)
         for k, n in enumerate(outputs, start=len(inputs)):
-            variables[n] = Variable(n, k, "Real", "output", "continuous")
+            t = types.get(n, "Real")
+            continuous = t == "Real" and n not in discrete
+            variables[n] = Variable(n, k, t, "output", "continuous" if continuous else "discrete", declared_type=t)
         deps = dependencies if dependencies is not None else {o: () for o in outputs}
         self.description = UnitDescription(name, variables, deps)
         self._by_vr = {v.vr: v.name for v in variables.values()}
-        self.inputs = dict.fromkeys(inputs, 0.0)
+        self.inputs = {n: variables[n].start for n in inputs}
         self.state = dict(state or {})
         self._outputs_fn = outputs_fn
         self._step_fn = step_fn
@@ -62,6 +77,20 @@ class FakeUnit:
         for r, v in zip(handle, values, strict=True):
             self.inputs[self._by_vr[r]] = float(v)
         self.calls.append(("set", self.name, tuple(self._by_vr[r] for r in handle)))
+
+    def get_values(self, fmi_type: str, refs) -> list:
+        names = [self._by_vr[r] for r in refs]
+        assert all(self.description.variables[n].fmi_type == fmi_type for n in names), (fmi_type, names)
+        out = self._outputs_fn(self.state, self.inputs)
+        self.calls.append(("tget", self.name, tuple(names)))
+        return [out[n] for n in names]
+
+    def set_values(self, fmi_type: str, refs, values) -> None:
+        names = [self._by_vr[r] for r in refs]
+        assert all(self.description.variables[n].fmi_type == fmi_type for n in names), (fmi_type, names)
+        for n, v in zip(names, values, strict=True):
+            self.inputs[n] = v
+        self.calls.append(("tset", self.name, tuple(names)))
 
     def step(self, t: float, h: float) -> None:
         from orchestration.master.errors import SimulationError

@@ -1,5 +1,7 @@
 """Build the tests' FMI 3.0 Co-Simulation unit (``ConstantCurrent3.fmu``) from C, and craft
-description-only FMUs (FMI 1.0, model exchange only, ...) for the refusal tests.
+description-only FMUs (FMI 1.0, model exchange only, ...) for the refusal tests (an FMI 2.0
+model-exchange-only FMU is accepted, then refused for its missing library; FMI 2.0 model
+exchange FMUs that run are built by tests/me_build.py).
 
 The C source ``tests/fmi3/constant_current3.c`` is compiled with the system C compiler
 (``$CC``, default ``cc``) against the FMI 3.0 headers fmpy ships (``fmpy/c-code``); the

@@ -299,11 +299,12 @@ def test_fmi3_error_in_a_scenario_fails_the_run_naming_unit_and_time(tmp_path, f
 
 
 @pytest.mark.parametrize(("xml", "text"), [
-    (FMI1_DESCRIPTION, "FMI 1.0 FMU; this master runs FMI 2.0 and 3.0 co-simulation FMUs"),
-    (FMI2_ME_DESCRIPTION, "model-exchange-only FMU; this master needs co-simulation"),
-    (FMI3_ME_DESCRIPTION, "FMI 3.0 FMU without Co-Simulation (model exchange only); this master needs co-simulation"),
-], ids=["fmi1", "fmi2-me", "fmi3-me"])
-def test_fmi1_and_model_exchange_only_fmus_are_refused(tmp_path, xml, text):
+    (FMI1_DESCRIPTION, "FMI 1.0 FMU; this master runs FMI 2.0 (co-simulation or model exchange) and FMI 3.0 "
+                       "co-simulation FMUs"),
+    (FMI3_ME_DESCRIPTION, "FMI 3.0 FMU without Co-Simulation (model exchange only); this master runs FMI 3.0 FMUs "
+                          "as co-simulation (model exchange: FMI 2.0 only)"),
+], ids=["fmi1", "fmi3-me"])
+def test_fmi1_and_fmi3_model_exchange_only_fmus_are_refused(tmp_path, xml, text):
     fmu = write_fmu(tmp_path / "unit.fmu", {"modelDescription.xml": xml})
     with pytest.raises(FmuFormatError) as info:
         read_description(fmu, "controller")
@@ -312,3 +313,15 @@ def test_fmi1_and_model_exchange_only_fmus_are_refused(tmp_path, xml, text):
         plan_scenario(scenario_with_controller(tmp_path, fmu, "refused"), ("simulation.stop_time=1",))
     (problem,) = scenario_error.value.problems
     assert problem.key == "units.controller.fmu" and problem.message == f"{fmu}: {text}"
+
+
+def test_an_fmi2_model_exchange_only_fmu_is_accepted_and_its_binary_checked(tmp_path):
+    """FMI 2.0 model exchange runs (tests/test_model_exchange.py); this description-only FMU lacks the library."""
+    fmu = write_fmu(tmp_path / "unit.fmu", {"modelDescription.xml": FMI2_ME_DESCRIPTION})
+    assert read_description(fmu, "controller")[0].model_identifier == "Me2"
+    with pytest.raises(ScenarioError) as scenario_error:
+        plan_scenario(scenario_with_controller(tmp_path, fmu, "me_only"), ("simulation.stop_time=1",))
+    binary, parameter = scenario_error.value.problems  # its description was read: Me2 has no 'current'
+    assert binary.key == "units.controller.fmu"
+    assert binary.message.startswith(f"{fmu}: no library for this platform, binaries/") and "Me2" in binary.message
+    assert parameter.message == "Me2 has no variable 'current'"

@@ -281,12 +281,13 @@ def test_non_finite_input_gives_an_fmi_error_status(fmu_dir, capfd, name, variab
 
 
 def _fails_at_first_step(unit: Driven) -> None:
-    """A problem found at initialization is logged there and fails the first step with discard
-    (pythonfmu would make an exception fmi2Fatal, after which the instance cannot even be freed)."""
+    """A problem found at initialization is logged there and fails the first step with fmi2Error
+    (the shell returns False, which the build's logging shim turns from pythonfmu's discard into
+    error; pythonfmu would make an exception fmi2Fatal, after which the instance cannot even be freed)."""
     try:
         with pytest.raises(FMICallException) as err:
             unit.step(0.0, 1e-3)
-        assert err.value.status == 2
+        assert err.value.status == 3
     finally:
         unit.close()
 

@@ -201,7 +201,7 @@ ME_ONLY = '<?xml version="1.0"?><fmiModelDescription fmiVersion="2.0" modelName=
     (None, "not an FMU (not a zip archive)"),
     ({"other.txt": "x"}, "the zip has no modelDescription.xml"),
     ({"modelDescription.xml": FMI1}, "FMI 1.0"),
-    ({"modelDescription.xml": ME_ONLY}, "model-exchange-only"),
+    ({"modelDescription.xml": ME_ONLY}, "invalid modelDescription.xml"),  # model exchange is accepted; no variables
 ])
 def test_malformed_fmus_are_clear_scenario_errors(tmp_path, files, message):
     fmu = tmp_path / "bad.fmu"

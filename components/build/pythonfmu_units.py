@@ -9,7 +9,12 @@ name.
 pythonfmu 0.7 writes no units and no output dependencies, so the build rewrites the
 modelDescription (:mod:`components.build.model_description`). The Linux binary pythonfmu
 0.7 ships has an exit hook that uses freed memory; the build removes it
-(:mod:`components.build.exit_fix`).
+(:mod:`components.build.exit_fix`). That binary also logs nothing unless the host turned
+debug logging on, so on Linux the FMU's ``<model>.so`` is a small shim compiled from
+``fmi2_log_shim.c`` that forwards warnings and errors always (and turns a failed step
+into fmi2Error when the shell sets ``FMU_FAILED_STEP_STATUS = "error"``); pythonfmu's
+library lies beside it as ``<model>.pythonfmu.so``. Without a C compiler the FMU is built
+without the shim, with a note on stderr.
 
 Build everything with ``python -m components.build``.
 """
@@ -21,6 +26,7 @@ import importlib.util
 import inspect
 import os
 import re
+import subprocess
 import sys
 import tempfile
 import zipfile
@@ -34,6 +40,10 @@ COMPONENTS_DIR = Path(__file__).resolve().parents[1]
 SHELLS_DIR = COMPONENTS_DIR / "shells"
 CORES_DIR = COMPONENTS_DIR / "physics"
 BUILD_DIR = Path(__file__).resolve().parent
+LOG_SHIM_SOURCE = BUILD_DIR / "fmi2_log_shim.c"
+INNER_SUFFIX = ".pythonfmu.so"  # pythonfmu's library beside the shim: <model>.pythonfmu.so
+SHIM_CFLAGS = ("-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-std=c99", "-Wall", "-Wextra")
+FAILED_STEP_STATUSES = ("discard", "error")
 
 
 @dataclass(frozen=True)
@@ -46,6 +56,7 @@ class FmuSource:
     storeys: int | None = None  # only for shells that take N_STOREYS at build time
     requirements: tuple[str, ...] = ()  # Python packages the unit imports on the host
     handles_state: bool = False  # the shell implements fmi2GetFMUstate/fmi2SetFMUstate
+    failed_step_is_error: bool = False  # FMU_FAILED_STEP_STATUS = "error": do_step False -> fmi2Error
 
     @property
     def fmu_name(self) -> str:
@@ -58,7 +69,7 @@ class FmuSource:
         """Files whose change makes the FMU stale."""
         cores = [CORES_DIR / f"{m}.py" for m in self.core_modules]
         return [self.script, *cores, Path(__file__).resolve(), BUILD_DIR / "exit_fix.py",
-                BUILD_DIR / "model_description.py"]
+                BUILD_DIR / "model_description.py", LOG_SHIM_SOURCE]
 
 
 def _load_module(script: Path, module_name: str):
@@ -103,9 +114,13 @@ def _discover(storeys: tuple[int, ...], signature: tuple[tuple[str, float], ...]
         module = _load_module(script, f"_discover_{script.stem}")
         cls = _shell_class(module)
         cores = tuple(getattr(module, "FMU_CORE_MODULES", ()))
+        failed_step = getattr(module, "FMU_FAILED_STEP_STATUS", "discard")
+        if failed_step not in FAILED_STEP_STATUSES:
+            raise BuildError(f"{script}: FMU_FAILED_STEP_STATUS must be one of {FAILED_STEP_STATUSES}")
         extra = {
             "requirements": tuple(getattr(module, "FMU_REQUIREMENTS", ())),
             "handles_state": "_get_fmu_state" in vars(cls) and "_set_fmu_state" in vars(cls),
+            "failed_step_is_error": failed_step == "error",
         }
         if hasattr(module, "N_STOREYS"):
             for n in sorted({module.N_STOREYS, *storeys}):
@@ -173,6 +188,38 @@ def _documentation(source: FmuSource) -> str:
     )
 
 
+def compile_log_shim(workdir: Path, inner: str, failed_step_is_error: bool) -> bytes | None:
+    """The shim library (see fmi2_log_shim.c) loading ``inner`` from its own folder; None without a compiler."""
+    from components.build.c_isolator import headers_dir
+
+    compiler = os.environ.get("CC", "cc")
+    target = workdir / "shim.so"
+    command = [compiler, *SHIM_CFLAGS, f"-I{headers_dir()}", f'-DINNER_LIBRARY="{inner}"',
+               f"-DSTEP_FAILURE_IS_ERROR={int(failed_step_is_error)}", str(LOG_SHIM_SOURCE), "-o", str(target),
+               "-ldl", "-lpthread"]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+    except FileNotFoundError:
+        return None
+    if done.returncode != 0:
+        raise BuildError(f"compiling {LOG_SHIM_SOURCE.name} failed:\n{' '.join(command)}\n{done.stderr}")
+    return target.read_bytes()
+
+
+def _linux_binary(source: FmuSource, name: str, data: bytes, workdir: Path) -> list[tuple[str, bytes]]:
+    """pythonfmu's Linux library, fixed, and the logging shim in its place (if a compiler exists)."""
+    fixed = remove_exit_hook(data, f"{source.fmu_name}:{name}")
+    if not name.endswith(".so"):
+        return [(name, fixed)]
+    inner = Path(name).name.removesuffix(".so") + INNER_SUFFIX
+    shim = compile_log_shim(workdir, inner, source.failed_step_is_error)
+    if shim is None:
+        print(f"note: no C compiler ({os.environ.get('CC', 'cc')}): {source.fmu_name} is built without its "
+              f"logging shim, so a host sees its errors only with debug logging on", file=sys.stderr)
+        return [(name, fixed)]
+    return [(name, shim), (str(Path(name).parent / inner), fixed)]
+
+
 def build(source: FmuSource, dest: Path) -> Path:
     """Build one FMU into ``dest`` and complete its modelDescription; returns its path."""
     from pythonfmu import FmuBuilder
@@ -209,7 +256,11 @@ def build(source: FmuSource, dest: Path) -> Path:
                     if item.filename == "modelDescription.xml":
                         data = complete_model_description(data, units, deps, starts)
                     elif item.filename.startswith("binaries/linux64/"):
-                        data = remove_exit_hook(data, f"{source.fmu_name}:{item.filename}")
+                        for name, binary in _linux_binary(source, item.filename, data, tmp):
+                            info = zipfile.ZipInfo(name, item.date_time)
+                            info.external_attr, info.compress_type = item.external_attr, item.compress_type
+                            zout.writestr(info, binary)
+                        continue
                     zout.writestr(item, data)
             os.chmod(partial, 0o644)
             os.replace(partial, target)

@@ -34,6 +34,7 @@ from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("bouc_wen_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11 (bouc_wen_core uses numpy)
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 CURRENT_MAX_A = 3.0
 IDENTIFIED_RANGE_M = 8e-3

@@ -12,6 +12,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 FMU_CORE_MODULES: tuple[str, ...] = ()
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
 class ConstantCurrent(Fmi2Slave):

@@ -19,6 +19,7 @@ from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("ground_motion_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
 class GroundMotionSource(Fmi2Slave):

@@ -30,6 +30,7 @@ from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("mre_isolator_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 _COEFFICIENTS = COEFFICIENT_DOCS
 

@@ -16,15 +16,22 @@ from __future__ import annotations
 import copy
 import math
 import operator
+import sys
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
-from shear_building_core import BuildingParams
-from shear_building_core import ShearBuilding as BuildingModel
+
+try:
+    from shear_building_core import BuildingParams
+    from shear_building_core import ShearBuilding as BuildingModel
+except ImportError as exc:  # the host's Python lacks a package: say which (the build's logging shim shows it)
+    raise ImportError(f"the ShearBuilding unit needs the Python packages numpy and scipy in the host's "
+                      f"interpreter ({sys.executable}): {exc}") from exc
 
 N_STOREYS = 3
 FMU_CORE_MODULES = ("shear_building_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
 class ShearBuilding(Fmi2Slave):

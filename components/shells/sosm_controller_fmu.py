@@ -16,6 +16,7 @@ from sosm_controller_core import IsolatorModel, SosmController, SosmGains
 
 FMU_CORE_MODULES = ("sosm_controller_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 _GAINS = {
     "lambda": ("lam", "1/s", "sliding-surface slope lambda"),

@@ -16,6 +16,7 @@ from switching_controller_core import SwitchingLaw
 
 FMU_CORE_MODULES = ("switching_controller_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
+FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
 class SwitchingCurrentController(Fmi2Slave):

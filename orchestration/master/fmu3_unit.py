@@ -1,11 +1,12 @@
 """FMI 3.0 co-simulation units through fmpy (``fmpy.fmi3.FMU3Slave``), and their descriptions.
 
 The same :class:`~orchestration.master.unit.Unit` protocol as the FMI 2.0
-:class:`~orchestration.master.fmu_unit.FmuUnit`. The master exchanges Real values only: an FMI 3.0
-``Float64`` is a ``Real``; ``Int32``/``Int64`` are ``Integer``, ``Enumeration``, ``Boolean``
-and ``String`` keep their names (parameters of these types are set before initialization);
-other types and array variables are described under their FMI 3.0 names, so the scenario
-check refuses connecting or setting them. FMI status codes are translated by
+:class:`~orchestration.master.fmu_unit.FmuUnit`. ``Float64`` values go through the Real fast path
+(in the description an FMI 3.0 ``Float64`` is a ``Real`` and ``Int32``/``Int64`` are ``Integer``;
+:attr:`~orchestration.master.unit.Variable.fmi_type` keeps the declared name); every other scalar
+type (``Float32``, ``Int8`` ... ``UInt64``, ``Boolean``, ``String``, ``Enumeration``) through
+``get_values``/``set_values``, which call the FMI 3.0 function of each variable's declared type.
+Binary, clocks and array variables are refused by the scenario check. FMI status codes are translated by
 :func:`orchestration.master.fmi_status.check_status`, the one place for both versions.
 
 The instance is created with ``eventModeUsed = false`` and ``earlyReturnAllowed = false``
@@ -21,7 +22,22 @@ from __future__ import annotations
 import shutil
 import weakref
 from collections.abc import Callable, Sequence
-from ctypes import byref, c_bool, c_char_p, c_double, c_int32, c_int64, c_uint
+from ctypes import (
+    byref,
+    c_bool,
+    c_char_p,
+    c_double,
+    c_float,
+    c_int8,
+    c_int16,
+    c_int32,
+    c_int64,
+    c_uint,
+    c_uint8,
+    c_uint16,
+    c_uint32,
+    c_uint64,
+)
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +46,17 @@ import numpy as np
 from orchestration.master.errors import SimulationError, UnitCallError
 from orchestration.master.fmi_status import FMI3_STATUS, LogRecord, check_status
 from orchestration.master.fmu_file import FmuFormatError, ValueBuffer, load_slave, read_description
+from orchestration.master.unit import INTEGER_RANGES
 
-_INT_RANGE = {"Int32": (-(2**31), 2**31 - 1), "Int64": (-(2**63), 2**63 - 1), "Enumeration": (-(2**63), 2**63 - 1)}
+# declared type -> (FMI 3.0 function suffix, C type)
+_CTYPES: dict[str, tuple[str, Any]] = {
+    "Float32": ("Float32", c_float), "Float64": ("Float64", c_double),
+    "Int8": ("Int8", c_int8), "UInt8": ("UInt8", c_uint8), "Int16": ("Int16", c_int16),
+    "UInt16": ("UInt16", c_uint16), "Int32": ("Int32", c_int32), "UInt32": ("UInt32", c_uint32),
+    "Int64": ("Int64", c_int64), "UInt64": ("UInt64", c_uint64), "Enumeration": ("Int64", c_int64),
+    "Boolean": ("Boolean", c_bool), "String": ("String", c_char_p),
+}
+_INT_RANGE = {**INTEGER_RANGES, "Enumeration": INTEGER_RANGES["Int64"]}
 
 
 class Fmu3Unit:
@@ -50,6 +75,8 @@ class Fmu3Unit:
         if not self.description.fmi_version.startswith("3."):
             raise FmuFormatError(f"{self.path}: FMI {self.description.fmi_version} FMU, not FMI 3.0")
         self._fmi_types = {v.name: v.type for v in self._md.modelVariables}
+        self._vr_types = {v.valueReference: v.type for v in self._md.modelVariables}
+        self._typed_cache: dict[tuple[int, ...], list[tuple[str, Any, Any, list[int]]]] = {}
         self.parameters = dict(parameters or {})
         self.log: list[LogRecord] = []
         self.warnings = 0
@@ -122,25 +149,15 @@ class Fmu3Unit:
 
     def _set_parameter(self, name: str, value: Any) -> None:
         fmi_type = self._fmi_types[name]
-        vr = (c_uint * 1)(self.description.variables[name].vr)
         try:
-            if fmi_type == "Float64":
-                self._call("fmi3SetFloat64", vr, 1, (c_double * 1)(float(value)), 1)
-            elif fmi_type in _INT_RANGE:
+            if fmi_type in _INT_RANGE:
                 low, high = _INT_RANGE[fmi_type]
                 if not low <= int(value) <= high:
                     raise SimulationError(f"{value!r} is out of range for {fmi_type}", self.name, name, self._time)
-                if fmi_type == "Int32":
-                    self._call("fmi3SetInt32", vr, 1, (c_int32 * 1)(int(value)), 1)
-                else:
-                    self._call("fmi3SetInt64", vr, 1, (c_int64 * 1)(int(value)), 1)
-            elif fmi_type == "Boolean":
-                self._call("fmi3SetBoolean", vr, 1, (c_bool * 1)(bool(value)), 1)
-            elif fmi_type == "String":
-                self._call("fmi3SetString", vr, 1, (c_char_p * 1)(str(value).encode("utf-8")), 1)
-            else:
+            elif fmi_type not in _CTYPES:
                 raise SimulationError(f"parameters of FMI 3.0 type {fmi_type} are not supported", self.name, name,
                                       self._time)
+            self.set_values(fmi_type, [self.description.variables[name].vr], [value])
         except UnitCallError as exc:
             raise SimulationError(
                 f"setting parameter to {value!r} failed: {exc.reason}", self.name, name, self._time, exc.details
@@ -186,12 +203,59 @@ class Fmu3Unit:
                               "does not use Event Mode (eventModeUsed = false), reported once".encode())
         self._time = end
 
-    def get_values(self, names: Sequence[str]) -> dict[str, Any]:
-        """Values of scalar variables of the supported types by name (slow path, for checks)."""
-        fmu = self._fmu
-        getters = {"Float64": fmu.getFloat64, "Int32": fmu.getInt32, "Int64": fmu.getInt64,
-                   "Enumeration": fmu.getInt64, "Boolean": fmu.getBoolean, "String": fmu.getString}
-        return {name: getters[self._fmi_types[name]]([self.description.variables[name].vr])[0] for name in names}
+    # -- every other type (the generic path of the Unit protocol) ------------------------------------
+    def _groups(self, refs: Sequence[int]) -> list[tuple[str, Any, Any, list[int]]]:
+        """Per declared type of ``refs``: (function suffix, value references, array type, positions in refs)."""
+        key = tuple(refs)
+        groups = self._typed_cache.get(key)
+        if groups is None:
+            by_type: dict[str, list[int]] = {}
+            for k, vr in enumerate(refs):
+                declared = self._vr_types.get(vr)
+                if declared not in _CTYPES:
+                    raise SimulationError(f"value reference {vr} has FMI 3.0 type {declared}, which is not exchanged",
+                                          unit=self.name, time=self._time)
+                by_type.setdefault(declared, []).append(k)
+            groups = []
+            for declared, positions in by_type.items():
+                suffix, ctype = _CTYPES[declared]
+                groups.append((suffix, (c_uint * len(positions))(*(refs[k] for k in positions)),
+                               ctype * len(positions), positions))
+            self._typed_cache[key] = groups
+        return groups
+
+    def get_values(self, fmi_type: str | Sequence[str], refs: Sequence[int] | None = None) -> Any:
+        """Values of ``refs`` as plain Python values (int, bool, str, float), each read with the FMI 3.0
+        function of its declared type (``fmi_type`` may be that type or the master's name for it).
+
+        The older form ``get_values(names)`` returns ``{name: value}``.
+        """
+        if refs is None:
+            names = list(fmi_type)
+            values = self.get_values("", [self.description.variables[n].vr for n in names])
+            return dict(zip(names, values, strict=True))
+        out: list[Any] = [None] * len(refs)
+        for suffix, vrs, array_type, positions in self._groups(refs):
+            n = len(positions)
+            buf = array_type()
+            self._check(f"fmi3Get{suffix}", self._f[f"fmi3Get{suffix}"](self._fmu.component, vrs, n, buf, n))
+            for k, v in zip(positions, buf, strict=True):
+                out[k] = (v or b"").decode("utf-8", "replace") if suffix == "String" else v
+        return out
+
+    def set_values(self, fmi_type: str, refs: Sequence[int], values: Sequence[Any]) -> None:
+        """Set ``refs`` to plain Python values, each with the FMI 3.0 function of its declared type."""
+        for suffix, vrs, array_type, positions in self._groups(refs):
+            n = len(positions)
+            if suffix == "String":
+                buf = array_type(*(str(values[k]).encode("utf-8") for k in positions))
+            elif suffix == "Boolean":
+                buf = array_type(*(bool(values[k]) for k in positions))
+            elif suffix.startswith("Float"):
+                buf = array_type(*(float(values[k]) for k in positions))
+            else:
+                buf = array_type(*(int(values[k]) for k in positions))
+            self._check(f"fmi3Set{suffix}", self._f[f"fmi3Set{suffix}"](self._fmu.component, vrs, n, buf, n))
 
     def terminate(self) -> None:
         """Terminate (if initialized), free the instance and the extracted files; never raises.

@@ -3,7 +3,12 @@
 :func:`read_description` turns fmpy's model description of an FMI 2.0 or 3.0 FMU into the
 master's :class:`~orchestration.master.unit.UnitDescription`; :func:`check_binary` checks,
 before anything runs, that the FMU holds a loadable library for this platform;
-:func:`load_slave` extracts an FMU and loads it as fmpy's ``FMU2Slave`` or ``FMU3Slave``.
+:func:`load_slave` extracts an FMU and loads it as fmpy's ``FMU2Slave``, ``FMU2Model`` or ``FMU3Slave``.
+
+Interfaces (:data:`INTERFACES`): FMI 2.0 FMUs run as co-simulation or as model exchange
+(:class:`~orchestration.master.me_unit.MeUnit`); FMI 3.0 FMUs as co-simulation only. A unit
+runs as the scenario's ``interface`` asks, else as co-simulation when the FMU has it, else
+as model exchange (:func:`run_interface`).
 
 Archives are bounded (:func:`check_archive`, also used for SSP packages): at most
 :data:`MAX_ENTRIES` entries and :data:`MAX_UNPACKED_BYTES` uncompressed, no entry that is a
@@ -53,8 +58,12 @@ MAX_DESCRIPTION_BYTES = 64 << 20
 """Largest modelDescription.xml read (64 MiB)."""
 
 
+INTERFACES = ("co-simulation", "model-exchange")
+"""How a unit can run: the FMU's Co-Simulation or its Model Exchange interface."""
+
+
 class FmuFormatError(ValueError):
-    """A file that is not a usable FMI 2.0 or 3.0 co-simulation FMU."""
+    """A file that is not a usable FMI 2.0 (co-simulation or model exchange) or FMI 3.0 co-simulation FMU."""
 
 
 class ArchiveError(ValueError):
@@ -146,8 +155,41 @@ def _open_fmu(path: Path) -> zipfile.ZipFile:
     return z
 
 
-def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
-    """The interface of the FMU at ``path`` (no binary is loaded) and fmpy's model description."""
+def declared_interfaces(md: Any) -> tuple[str, ...]:
+    """The interfaces (of :data:`INTERFACES`) a model description declares."""
+    return tuple(kind for kind, element in zip(INTERFACES, (md.coSimulation, md.modelExchange), strict=True)
+                 if element is not None)
+
+
+def run_interface(md: Any, requested: str | None = None) -> str:
+    """The interface a unit runs as: ``requested``, else co-simulation when the FMU has it, else model exchange.
+
+    FmuFormatError when the FMU cannot run that way (the interface is not declared, or model
+    exchange of an FMI 3.0 FMU) or declares neither interface.
+    """
+    declared = declared_interfaces(md)
+    if requested is not None and requested not in INTERFACES:
+        raise FmuFormatError(f"unknown interface {requested!r} (choices: {', '.join(INTERFACES)})")
+    if not declared:
+        raise FmuFormatError("the FMU declares neither Co-Simulation nor Model Exchange")
+    chosen = requested or declared[0]
+    if chosen not in declared:
+        raise FmuFormatError(f"interface {chosen} requested, but the FMU has {' and '.join(declared)} only")
+    if chosen == "model-exchange" and md.fmiVersion.startswith("3."):
+        raise FmuFormatError("FMI 3.0 model exchange is not supported (FMI 3.0 FMUs run as co-simulation; "
+                             "model exchange: FMI 2.0)")
+    return chosen
+
+
+def model_identifier(md: Any, interface: str | None = None) -> str:
+    """The model identifier (library name) of the interface the unit runs as (:func:`run_interface`)."""
+    element = md.modelExchange if run_interface(md, interface) == "model-exchange" else md.coSimulation
+    return element.modelIdentifier
+
+
+def read_description(path: Path, name: str, interface: str | None = None) -> tuple[UnitDescription, Any]:
+    """The interface of the FMU at ``path`` run as ``interface`` (default: :func:`run_interface`; no binary is
+    loaded) and fmpy's model description."""
     from fmpy import read_model_description
 
     path = Path(path)
@@ -161,11 +203,14 @@ def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
         raise FmuFormatError(f"{path}: unreadable modelDescription.xml: {reason}") from None
     # What kind of FMU first (a clearer message than the schema's), then fmpy's validation.
     if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
-        raise FmuFormatError(f"{path}: FMI {md.fmiVersion} FMU; this master runs FMI 2.0 and 3.0 co-simulation FMUs")
-    if md.coSimulation is None and not md.fmiVersion.startswith("3."):  # FMI 3.0: describe_fmi3 says which kind
-        raise FmuFormatError(f"{path}: model-exchange-only FMU; this master needs co-simulation")
-    if md.coSimulation is None:
-        return describe_fmi3(path, name, md), md
+        raise FmuFormatError(f"{path}: FMI {md.fmiVersion} FMU; this master runs FMI 2.0 (co-simulation or model "
+                             "exchange) and FMI 3.0 co-simulation FMUs")
+    if md.coSimulation is None and md.fmiVersion.startswith("3."):
+        return describe_fmi3(path, name, md), md  # refuses it, saying which kind it is
+    try:
+        run_interface(md, interface)
+    except FmuFormatError as exc:
+        raise FmuFormatError(f"{path}: {exc}") from None
     try:
         read_model_description(str(path), validate=True)
     except ValidationError as exc:  # the schema and fmpy's checks (duplicate names, references, ...)
@@ -178,10 +223,10 @@ def read_description(path: Path, name: str) -> tuple[UnitDescription, Any]:
         raise FmuFormatError(f"{path}: invalid modelDescription.xml: {reason}") from None
     if md.fmiVersion.startswith("3."):
         return describe_fmi3(path, name, md), md
-    return _description(name, md, lambda v: v.type), md
+    return _description(name, md, lambda v: v.type, model_identifier(md, interface)), md
 
 
-def _description(name: str, md: Any, master_type: Callable[[Any], str]) -> UnitDescription:
+def _description(name: str, md: Any, master_type: Callable[[Any], str], identifier: str) -> UnitDescription:
     """The master's view of fmpy's model description: variables (typed by ``master_type``) and dependencies."""
     variables = {}
     for v in md.modelVariables:
@@ -194,24 +239,29 @@ def _description(name: str, md: Any, master_type: Callable[[Any], str]) -> UnitD
             unit=v.unit or (v.declaredType.unit if v.declaredType is not None else None),
             start=v.start,
             description=v.description or "",
+            declared_type=v.type,
+            items=tuple((i.name, int(i.value)) for i in getattr(v.declaredType, "items", None) or ()
+                        if i.value is not None),
         )
     deps: dict[str, tuple[str, ...] | None] = {}
     for out in md.outputs:
         deps[out.variable.name] = (
             None if out.dependencies is None else tuple(d.name for d in out.dependencies if d.causality == "input")
         )
-    return UnitDescription(name, variables, deps, md.coSimulation.modelIdentifier, md.fmiVersion)
+    return UnitDescription(name, variables, deps, identifier, md.fmiVersion)
 
 
-def load_slave(slave_class: Any, path: Path, md: Any, name: str, start_time: float) -> tuple[str, Any]:
-    """Extract an FMU and load its library as fmpy's ``slave_class`` (FMU2Slave or FMU3Slave)."""
+def load_slave(slave_class: Any, path: Path, md: Any, name: str, start_time: float,
+               interface: str = "co-simulation") -> tuple[str, Any]:
+    """Extract an FMU and load the library of its ``interface`` as fmpy's ``slave_class`` (FMU2Slave, FMU2Model or
+    FMU3Slave)."""
     directory = None
     try:
         directory = tempfile.mkdtemp(prefix="mre_fmu_")
         with _open_fmu(Path(path)) as z:
             safe_extract(z, directory, path)
         slave = slave_class(guid=md.guid, unzipDirectory=directory,
-                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+                            modelIdentifier=model_identifier(md, interface), instanceName=name)
     except Exception as exc:
         if directory is not None:
             shutil.rmtree(directory, ignore_errors=True)
@@ -226,8 +276,9 @@ def describe_fmi3(path: Path, name: str, md: Any) -> UnitDescription:
                  if v is not None]
         only = " and ".join(kinds) if kinds else "no interface"
         raise FmuFormatError(f"{path}: FMI 3.0 FMU without Co-Simulation ({only} only); "
-                             "this master needs co-simulation")
-    return _description(name, md, lambda v: f"{v.type} array" if v.dimensions else _MASTER_TYPE.get(v.type, v.type))
+                             "this master runs FMI 3.0 FMUs as co-simulation (model exchange: FMI 2.0 only)")
+    return _description(name, md, lambda v: f"{v.type} array" if v.dimensions else _MASTER_TYPE.get(v.type, v.type),
+                        md.coSimulation.modelIdentifier)
 
 
 @dataclass
@@ -238,22 +289,26 @@ class ValueBuffer:
     n: int
 
 
-def binary_path(md: Any) -> str:
-    """The archive path of the FMU's library for this platform (as fmpy loads it)."""
+def binary_path(md: Any, interface: str | None = None) -> str:
+    """The archive path of the FMU's library for this platform (as fmpy loads it), for the interface it runs as."""
     import fmpy
 
     folder = fmpy.platform_tuple if md.fmiVersion.startswith("3.") else fmpy.platform
-    return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+    return f"binaries/{folder}/{model_identifier(md, interface)}{fmpy.sharedLibraryExtension}"
 
 
-def check_binary(path: Path, md: Any) -> str | None:
-    """Why the FMU's library for this platform cannot be loaded, or None; nothing is extracted or loaded.
+def check_binary(path: Path, md: Any, interface: str | None = None) -> str | None:
+    """Why the FMU's library for this platform (of the interface it runs as) cannot be loaded, or None; nothing is
+    extracted or loaded.
 
     The library must be in the archive; on Linux it must be an ELF shared object for this
     interpreter's machine and word size whose segments lie within the file (a truncated,
     corrupt or foreign binary is found here, before any run folder exists).
     """
-    member = binary_path(md)
+    try:
+        member = binary_path(md, interface)
+    except FmuFormatError as exc:
+        return f"{path}: {exc}"
     try:
         with _open_fmu(Path(path)) as z:
             if member not in z.namelist():

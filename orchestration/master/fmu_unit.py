@@ -26,6 +26,9 @@ from orchestration.master.fmu_file import ValueBuffer, load_slave, read_descript
 # for the whole process, so all units share one Python logger; it dispatches each message
 # to its unit through the componentEnvironment pointer the unit passed at instantiation.
 _LOG_TARGETS: dict[int, weakref.ref] = {}
+# declared type -> the FMI 2.0 get/set function suffix
+_FMI2_FUNCTION = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+                  "String": "String"}
 _ENV_KEYS = itertools.count(1)
 _CALLBACKS = None
 
@@ -88,6 +91,7 @@ class FmuUnit:
         self._callbacks = None
         self._f: dict[str, Any] = {}
         self._worst = 0  # worst FMI status returned so far
+        self._typed_cache: dict[tuple[str, tuple[int, ...]], tuple[str, Any, Any]] = {}
 
     # -- FMI status translation: the only place -------------------------------------------------
     def _check(self, function: str, status: int) -> None:
@@ -127,18 +131,24 @@ class FmuUnit:
         return own
 
     # -- Unit interface --------------------------------------------------------------------------
+    interface = "co-simulation"  # the FMU interface this class drives
+    _fmpy_class = "FMU2Slave"  # fmpy.fmi2's class for it
+
     def setup(self, start_time: float, stop_time: float) -> None:
         """Extract, load, instantiate, apply parameters, set up the experiment, enter initialization."""
-        from fmpy.fmi2 import FMU2Slave
+        import fmpy.fmi2
 
-        self._time = start_time
-        self._dir, self._fmu = load_slave(FMU2Slave, self.path, self._md, self.name, start_time)
+        self._time = self._start_time = start_time
+        self._stop_time = stop_time
+        self._dir, self._fmu = load_slave(getattr(fmpy.fmi2, self._fmpy_class), self.path, self._md, self.name,
+                                          start_time, self.interface)
         self._f = self._fmu._functions
         self._callbacks = self._make_callbacks()
         try:
             self._fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
         except Exception as exc:
-            raise SimulationError(f"fmi2Instantiate failed: {exc}", unit=self.name, time=start_time) from exc
+            raise SimulationError(f"fmi2Instantiate ({self.interface}) failed: {exc}", unit=self.name,
+                                  time=start_time) from exc
         self._instantiated = True
         for name, value in self.parameters.items():
             self._set_parameter(name, value)
@@ -213,15 +223,47 @@ class FmuUnit:
         """Translate a status an FMI function of this unit returned elsewhere (raises above warning)."""
         self._check(function, status)
 
-    def get_values(self, names: Sequence[str]) -> dict[str, Any]:
-        """Values of variables of any type by name (slow path, for parameters and checks)."""
-        out = {}
-        for name in names:
-            var = self.description.variables[name]
-            getter = {"Real": self._fmu.getReal, "Integer": self._fmu.getInteger,
-                      "Boolean": self._fmu.getBoolean, "String": self._fmu.getString}[var.type]
-            out[name] = getter([var.vr])[0]
+    # -- every other type (the generic path of the Unit protocol) ------------------------------------
+    def _typed_buffers(self, fmi_type: str, refs: Sequence[int]) -> tuple[str, Any, Any]:
+        """(FMI function suffix, value references, value array) for ``refs``, made once per reference list."""
+        key = (fmi_type, tuple(refs))
+        cached = self._typed_cache.get(key)
+        if cached is None:
+            from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2String
+
+            suffix = _FMI2_FUNCTION.get(fmi_type)
+            if suffix is None:
+                raise SimulationError(f"FMI 2.0 has no type {fmi_type}", unit=self.name, time=self._time)
+            ctype = {"Real": c_double, "Integer": fmi2Integer, "Boolean": fmi2Boolean, "String": fmi2String}[suffix]
+            cached = (suffix, (c_uint * max(len(refs), 1))(*refs), ctype * max(len(refs), 1))
+            self._typed_cache[key] = cached
+        suffix, vrs, array_type = cached
+        return suffix, vrs, array_type()
+
+    def get_values(self, fmi_type: str | Sequence[str], refs: Sequence[int] | None = None) -> Any:
+        """Values of ``refs`` of type ``fmi_type`` as plain Python values (int, bool, str, float).
+
+        The older form ``get_values(names)`` returns ``{name: value}`` for variables of any type.
+        """
+        if refs is None:
+            names = list(fmi_type)
+            return {n: self.get_values(self.description.variables[n].type, [self.description.variables[n].vr])[0]
+                    for n in names}
+        suffix, vrs, values = self._typed_buffers(str(fmi_type), refs)
+        self._check(f"fmi2Get{suffix}", self._f[f"fmi2Get{suffix}"](self._fmu.component, vrs, len(refs), values))
+        out = list(values)[: len(refs)]
+        if suffix == "Boolean":
+            return [bool(v) for v in out]
+        if suffix == "String":
+            return [(v or b"").decode("utf-8", "replace") for v in out]
         return out
+
+    def set_values(self, fmi_type: str, refs: Sequence[int], values: Sequence[Any]) -> None:
+        """Set ``refs`` of type ``fmi_type`` to plain Python values."""
+        suffix, vrs, buf = self._typed_buffers(fmi_type, refs)
+        for k, v in enumerate(values):
+            buf[k] = str(v).encode("utf-8") if suffix == "String" else (int(bool(v)) if suffix == "Boolean" else v)
+        self._check(f"fmi2Set{suffix}", self._f[f"fmi2Set{suffix}"](self._fmu.component, vrs, len(refs), buf))
 
     def terminate(self) -> None:
         """Terminate (if initialized), free the instance and the extracted files; never raises.

@@ -1,5 +1,9 @@
 """The native executor: the master's inner loop in C, for runs whose units are FMI 2.0 FMUs.
 
+It moves Real values only: a system that connects or records values of any other type
+(Integer, Boolean, String, ...) is refused with :class:`NativeUnavailable`, so ``auto`` runs
+it with the Python executor and ``summary.json`` says why (``executor_note``).
+
 :class:`~orchestration.master.algorithm.CouplingAlgorithm` describes one communication step as a
 flat program (:meth:`~orchestration.master.algorithm.CouplingAlgorithm.program`); the Python
 executor (:meth:`~orchestration.master.algorithm.CouplingAlgorithm.step`) and this one carry out
@@ -159,8 +163,14 @@ class NativeStepper:
                  step: float, n_steps: int) -> None:
         units = list(algorithm.units.values())
         natives = [getattr(u, "native_functions", lambda: None)() for u in units]
+        if any(op.kind not in _KINDS for op in algorithm.program()):
+            desc = algorithm.descriptions
+            ports = [f"{u}.{v} ({desc[u].variables[v].fmi_type})" for u, v in algorithm.typed_ports]
+            shown = ", ".join(ports[:5]) + (f" and {len(ports) - 5} more" if len(ports) > 5 else "")
+            raise NativeUnavailable(f"the system exchanges or records values that are not Real ({shown}); "
+                                    "the native kernel moves Real values only")
         if any(n is None for n in natives):
-            raise NativeUnavailable("a unit is not an FMI 2.0 FMU driven through FmuUnit")
+            raise NativeUnavailable("a unit is not an FMI 2.0 co-simulation FMU")
         # The Recorder is known by its rows_to_fill() (recorder.py imports this module for its CSV writer).
         recorders = [o for o in observers if callable(getattr(o, "rows_to_fill", None))]
         monitors = [o for o in observers if isinstance(o, Monitor)]

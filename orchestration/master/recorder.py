@@ -1,20 +1,37 @@
-"""Recording chosen outputs at every communication point into preallocated arrays, and writing them as CSV."""
+"""Recording chosen outputs at every communication point into preallocated arrays, and writing them as CSV.
+
+Every type is recorded. Real (and FMI 3.0 Float64/Float32) columns are written as ``'%.12g'``;
+integer, enumeration and Boolean columns are held in the same float64 arrays (exact up to
+2^53, the algorithm refuses larger magnitudes) and written as plain integers (Booleans 0/1);
+String columns are kept as Python strings and written quoted (RFC 4180: ``"a ""b"", c"``).
+A run that records only Reals writes exactly the bytes it always did.
+"""
 
 from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.graph import Port
 from orchestration.master.runfolder import _atomic
+from orchestration.master.unit import Variable
 
 SPILL_ENV = "MRE_COSIM_SPILL_MB"
 DEFAULT_SPILL_MB = 256.0
+
+
+def column_kind(var: Variable) -> str:
+    """How a recorded variable's column is written: ``real``, ``integer`` (integers, enumerations, Booleans) or
+    ``string``."""
+    if var.fast_real or var.fmi_type in ("Real", "Float64", "Float32"):
+        return "real"
+    return "string" if var.fmi_type == "String" else "integer"
 
 
 def spill_threshold() -> int:
@@ -41,7 +58,15 @@ class Recorder:
         self.ports = list(ports)
         self.names = [f"{u}.{v}" for u, v in self.ports]
         self._values = algorithm.values
-        self._slots = np.asarray([algorithm.slot[p] for p in self.ports], dtype=np.intp)
+        desc = algorithm.descriptions
+        self.kinds = [column_kind(desc[u].variables[v]) for u, v in self.ports]
+        numeric = [k for k, kind in enumerate(self.kinds) if kind != "string"]
+        self._slots = np.asarray([algorithm.slot[self.ports[k]] for k in numeric], dtype=np.intp)
+        self._numeric_columns = None if len(numeric) == len(self.ports) else np.asarray(numeric, dtype=np.intp)
+        self._typed = algorithm.typed
+        self._string_slots = [(k, algorithm.typed_slot[p]) for k, p in enumerate(self.ports)
+                              if self.kinds[k] == "string"]
+        self.strings: dict[int, list[str]] = {k: [] for k, _ in self._string_slots}  # column -> values by row
         rows, cols = n_steps + 1, len(self.ports)
         self.spilled = spill_dir is not None and rows * (cols + 1) * 8 > spill_threshold()
         if self.spilled:
@@ -60,7 +85,14 @@ class Recorder:
     def record(self, k: int, t: float) -> None:
         """Store row k at time t [s]."""
         self.time[k] = t
-        self.data[k] = self._values[self._slots]
+        if self._numeric_columns is None:
+            self.data[k] = self._values[self._slots]
+        else:
+            self.data[k, self._numeric_columns] = self._values[self._slots]
+            for column, slot in self._string_slots:
+                values = self.strings[column]
+                del values[k:]
+                values.append(self._typed[slot])
         self.count = k + 1
 
     def rows_to_fill(self) -> tuple[list[Port], np.ndarray, np.ndarray]:
@@ -69,8 +101,11 @@ class Recorder:
         return self.ports, self.time, self.data
 
     def column(self, name: str) -> np.ndarray:
-        """Recorded values of one variable (``unit.var``), rows written so far."""
-        return self.data[: self.count, self.names.index(name)]
+        """Recorded values of one variable (``unit.var``), rows written so far (a String column as objects)."""
+        k = self.names.index(name)
+        if k in self.strings:
+            return np.asarray(self.strings[k][: self.count], dtype=object)
+        return self.data[: self.count, k]
 
     @property
     def times(self) -> np.ndarray:
@@ -79,20 +114,33 @@ class Recorder:
 
     def write_csv(self, path: Path) -> None:
         """The rows written so far as ``timeseries.csv`` (see :func:`write_timeseries`)."""
-        write_timeseries(path, self.times, self.names, self.data[: self.count])
+        write_timeseries(path, self.times, self.names, self.data[: self.count], self.kinds, self.strings)
 
 
 ROWS_PER_CHUNK = 5000
 
 
-def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray) -> None:
+def quote(text: str) -> str:
+    """A String value as a CSV field: always quoted, inner quotes doubled (RFC 4180)."""
+    return '"' + text.replace('"', '""') + '"'
+
+
+def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray,
+                     kinds: Sequence[str] | None = None, strings: Mapping[int, Sequence[str]] | None = None) -> None:
     """CSV with a ``time`` column first, then one column per variable, every number as ``'%.12g' % x``.
+
+    With ``kinds`` (:func:`column_kind` per column) that are not all ``real``: ``integer``
+    columns are written as whole numbers (``'%d'``) and ``string`` columns, whose values come
+    from ``strings[column]``, as quoted text (:func:`quote`).
 
     Written atomically (temporary file, then rename). The same bytes as formatting row by row
     in Python, several times faster: blocks of rows go to the compiled formatter of the native
     kernel (:func:`orchestration.master.native_stepper.csv_formatter`, which formats exactly as
     Python does), or, without a C compiler, through one format string per block.
     """
+    if kinds is not None and any(kind != "real" for kind in kinds):
+        _write_typed(Path(path), time, names, data, kinds, strings or {})
+        return
     from orchestration.master.native_stepper import csv_formatter
 
     n_cols = 1 + len(names)
@@ -111,3 +159,24 @@ def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: n
                 f.write((row * len(part)) % tuple(part.ravel().tolist()))
 
     _atomic(Path(path), write)
+
+
+def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray, kinds: Sequence[str],
+                 strings: Mapping[int, Sequence[str]]) -> None:
+    """:func:`write_timeseries` for columns of several kinds (row by row in Python)."""
+    formats = {"real": "%.12g", "integer": "%d", "string": "%s"}
+    row = ",".join(["%.12g", *(formats[kind] for kind in kinds)]) + "\n"
+
+    def write(f) -> None:
+        f.write(",".join(["time", *names]) + "\n")
+        for start in range(0, len(time), ROWS_PER_CHUNK):
+            stop = min(start + ROWS_PER_CHUNK, len(time))
+            columns: list[list[Any]] = [np.asarray(time[start:stop], dtype=float).tolist()]
+            for k, kind in enumerate(kinds):
+                if kind == "string":
+                    columns.append([quote(str(v)) for v in strings[k][start:stop]])
+                else:
+                    columns.append(np.asarray(data[start:stop, k], dtype=float).tolist())
+            f.write("".join(row % values for values in zip(*columns, strict=True)))
+
+    _atomic(path, write)

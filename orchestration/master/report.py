@@ -63,7 +63,7 @@ def summarize(rec: Recorder, spec: ReportSpec) -> dict[str, Any]:
         name: {"max_abs": _peak(rec.data[: rec.count, k]),
                "min": float(np.min(rec.data[: rec.count, k])) if rec.count else None,
                "max": float(np.max(rec.data[: rec.count, k])) if rec.count else None}
-        for k, name in enumerate(rec.names)
+        for k, name in enumerate(rec.names) if rec.kinds[k] != "string"
     }
     return out
 

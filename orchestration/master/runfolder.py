@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -193,7 +194,13 @@ def sha256(path: Path) -> str:
 
 def package_versions(names: Sequence[str] = ("fmpy", "pythonfmu", "numpy", "scipy", "matplotlib", "pydantic",
                                              "PyYAML")) -> dict[str, str]:
-    """Installed versions of the packages a run depends on."""
+    """Installed versions of the packages a run depends on (read once per process: a study's
+    forked children inherit them instead of scanning site-packages again for every run)."""
+    return dict(_package_versions(tuple(names)))
+
+
+@functools.cache
+def _package_versions(names: tuple[str, ...]) -> dict[str, str]:
     out = {}
     for name in names:
         try:

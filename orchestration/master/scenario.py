@@ -80,10 +80,25 @@ class Connection(_Strict):
 
 
 class UnitSpec(_Strict):
-    """One co-simulation unit: its FMU file (relative to the scenario file) and parameter values."""
+    """One co-simulation unit: its FMU file (relative to the scenario file) and parameter values.
+
+    ``interface``: run the FMU's ``co-simulation`` or its ``model-exchange`` interface (default:
+    co-simulation when the FMU has it, else model exchange); ``relative_tolerance`` is the
+    model-exchange solver's (CVode) relative tolerance, default 1e-6.
+    """
 
     fmu: str
     parameters: dict[str, ParamValue] = Field(default_factory=dict)
+    interface: Literal["co-simulation", "model-exchange"] | None = Field(
+        None, description="co-simulation or model-exchange (default: co-simulation when the FMU has it)")
+    relative_tolerance: Annotated[Number, Field(gt=0, lt=1)] | None = Field(
+        None, description="relative tolerance of the model-exchange solver (default 1e-6)")
+
+    @model_validator(mode="after")
+    def _tolerance_needs_model_exchange(self) -> UnitSpec:
+        if self.relative_tolerance is not None and self.interface != "model-exchange":
+            raise ValueError("relative_tolerance is the model-exchange solver's: it needs interface: model-exchange")
+        return self
 
     @field_validator("parameters", mode="before")
     @classmethod

@@ -71,7 +71,7 @@ def describe_run(plan: SystemPlan) -> RunDescription:
     """Each unit's parameter values as the run uses them (set in the scenario, else declared), for captions."""
     values = {}
     for unit, desc in plan.descriptions.items():
-        declared = {v.name: _typed(v.type, v.start) for v in desc.variables.values()
+        declared = {v.name: _typed(v.fmi_type, v.start) for v in desc.variables.values()
                     if v.causality == "parameter" and v.start is not None}
         values[unit] = declared | plan.parameters.get(unit, {})
     names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
@@ -144,7 +144,8 @@ def run_plan(
 
     described = describe_run(plan)
     save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
-                                                    recorder.data[: recorder.count]))
+                                                    recorder.data[: recorder.count], recorder.kinds,
+                                                    recorder.strings))
     if plots and recorder.count > 1:
         save("plots (*.png)", lambda: plot(recorder, sc.report, folder, sc.name, described))
     run = run_id(folder)

@@ -31,7 +31,14 @@ from orchestration.master.fmu_unit import FmuUnit
 from orchestration.master.graph import AlgebraicLoopError, Link, Port, propagation_order
 from orchestration.master.report import PLACEHOLDER
 from orchestration.master.scenario import LoadedScenario, Scenario, VariableRef, result_size_problem
-from orchestration.master.unit import UnitDescription
+from orchestration.master.unit import (
+    EXCHANGED_TYPES,
+    INTEGER_RANGES,
+    UnitDescription,
+    Variable,
+    exchange_kind,
+    value_range,
+)
 from orchestration.master.yaml_source import DataFile
 
 _QUOTED = r"""(?:'[^'\n]*'|"[^"\n]*")"""
@@ -55,15 +62,56 @@ def _choice_problem(var: Any, value: Any) -> str | None:
     return f"{var.name} = {value!r} is not one of {', '.join(repr(c) for c in choices)}{hint}"
 
 
+_FLOAT32_MAX = 3.4028234663852886e38
+
+
 def _compatible(fmi_type: str, value: Any) -> bool:
     """Can a YAML value be set to a variable of this FMI type (no silent bool/number mixing)?"""
-    if fmi_type == "Real":
+    if fmi_type in ("Real", "Float64", "Float32"):
         return isinstance(value, int | float) and not isinstance(value, bool)
-    if fmi_type in ("Integer", "Enumeration"):
+    if fmi_type in INTEGER_RANGES or fmi_type == "Enumeration":
         return isinstance(value, int) and not isinstance(value, bool)
     if fmi_type == "Boolean":
         return isinstance(value, bool)
     return fmi_type == "String" and isinstance(value, str)
+
+
+def typed_parameter(var: Variable, value: Any, fmi_version: str = "2.0") -> tuple[Any, str | None]:
+    """A YAML value checked against the variable's declared type: (the value to set, None) or (value, why not).
+
+    Reals take numbers, integers whole numbers within their type's range, Booleans only
+    ``true``/``false``, Strings text; an Enumeration takes an item name or an item value.
+    """
+    fmi_type = var.fmi_type
+    unit = f" [{var.unit}]" if var.unit else ""
+    if fmi_type == "Enumeration" and var.items:
+        names = {name: number for name, number in var.items}
+        listed = ", ".join(f"{name} = {number}" for name, number in var.items)
+        if isinstance(value, str):
+            if value in names:
+                return names[value], None
+            close = difflib.get_close_matches(value, list(names), n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            return value, f"{var.name!r} is an Enumeration with items {listed}; {value!r} is none of them{hint}"
+        if _compatible(fmi_type, value) and value in names.values():
+            return value, None
+        return value, f"{var.name!r} is an Enumeration with items {listed}, got {value!r} (give an item name or value)"
+    if not _compatible(fmi_type, value):
+        return value, f"{var.name!r} is {fmi_type}{unit}, got {value!r}"
+    limits = value_range(fmi_type, fmi_version)
+    if limits is not None and not limits[0] <= value <= limits[1]:
+        return value, f"{var.name!r} is {fmi_type}, {value!r} is out of its range [{limits[0]}, {limits[1]}]"
+    if fmi_type == "Float32" and abs(value) > _FLOAT32_MAX:
+        return value, f"{var.name!r} is Float32, {value!r} is beyond its largest value {_FLOAT32_MAX:.9g}"
+    return value, None
+
+
+def _not_exchanged(var: Variable) -> str | None:
+    """Why the master cannot connect, set or record this variable (FMI 3.0 Binary, clocks, arrays), or None."""
+    if var.fmi_type in EXCHANGED_TYPES:
+        return None
+    return (f"{var.name!r} is {var.fmi_type}: this master exchanges scalar Real/Float, integer, Enumeration, "
+            "Boolean and String variables only (no Binary, clocks or arrays)")
 
 
 @dataclass
@@ -81,9 +129,18 @@ class SystemPlan:
     provenance: dict[str, Any] = field(default_factory=dict)  # what the application says made the run
 
     def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit | Fmu3Unit]:
-        """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit."""
-        return [(Fmu3Unit if desc.fmi_version.startswith("3.") else FmuUnit)(
-            name, self.fmu_paths[name], self.parameters[name], on_log) for name, desc in self.descriptions.items()]
+        """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit, units run as
+        model exchange (the scenario's ``interface``, or an FMU without co-simulation) as MeUnit."""
+        from orchestration.master.me_unit import MeUnit, runs_as_model_exchange
+
+        units: list[FmuUnit | Fmu3Unit] = []
+        for name, desc in self.descriptions.items():
+            spec, args = self.loaded.scenario.units[name], (name, self.fmu_paths[name], self.parameters[name], on_log)
+            if runs_as_model_exchange(self.fmu_paths[name], spec.interface):
+                units.append(MeUnit(*args, relative_tolerance=spec.relative_tolerance))
+            else:
+                units.append((Fmu3Unit if desc.fmi_version.startswith("3.") else FmuUnit)(*args))
+        return units
 
     def create_algorithm(self, units: list[FmuUnit]) -> CouplingAlgorithm:
         """The coupling algorithm for these units, as the scenario chose it."""
@@ -134,11 +191,11 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
             problems.append(loaded.problem(text, "units", name, "fmu"))
             continue
         try:
-            descriptions[name], md = read_description(path, name)
+            descriptions[name], md = read_description(path, name, sc.units[name].interface)
         except FmuFormatError as exc:
             problems.append(loaded.problem(str(exc), "units", name, "fmu"))
             continue
-        text = check_binary(path, md)
+        text = check_binary(path, md, sc.units[name].interface)
         if text is not None:
             problems.append(loaded.problem(text, "units", name, "fmu"))
 
@@ -172,10 +229,11 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                     f"{pname!r} is a {var.variability} {var.causality}, not a settable parameter",
                     "units", name, "parameters", pname))
                 continue
-            if not _compatible(var.type, value):
-                unit = f" [{var.unit}]" if var.unit else ""
-                problems.append(loaded.problem(f"{pname!r} is {var.type}{unit}, got {value!r}",
-                                               "units", name, "parameters", pname))
+            text = _not_exchanged(var)
+            if text is None:
+                value, text = typed_parameter(var, value, desc.fmi_version)
+            if text is not None:
+                problems.append(loaded.problem(text, "units", name, "parameters", pname))
                 continue
             text = _choice_problem(var, value)
             if text is not None:
@@ -197,6 +255,10 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         if var.causality != causality:
             problems.append(loaded.problem(f"{ref} is {var.causality}, expected {causality}", *key))
             return None
+        text = _not_exchanged(var)
+        if text is not None:
+            problems.append(loaded.problem(f"{ref}: {text}", *key))
+            return None
         return (ref.unit, ref.name)
 
     links: list[Link] = []
@@ -208,13 +270,15 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
             continue
         vs = descriptions[src[0]].variables[src[1]]
         vd = descriptions[dst[0]].variables[dst[1]]
-        if vs.type != vd.type:
-            problems.append(loaded.problem(f"type mismatch: {conn.source} is {vs.type}, {conn.target} is {vd.type}",
-                                           "connections", k))
+        if exchange_kind(vs.fmi_type) != exchange_kind(vd.fmi_type):
+            problems.append(loaded.problem(
+                f"type mismatch: {conn.source} is {vs.fmi_type}, {conn.target} is {vd.fmi_type} "
+                "(connections join equal types; the master converts none)", "connections", k))
             continue
-        if vs.type != "Real":
-            problems.append(loaded.problem(f"only Real connections are supported, {conn} is {vs.type}",
-                                           "connections", k))
+        if vs.fmi_type == "Enumeration" and vs.items and vd.items and sorted(vs.items) != sorted(vd.items):
+            problems.append(loaded.problem(
+                f"enumeration mismatch: {conn.source} has items {_items(vs)}, {conn.target} has {_items(vd)}",
+                "connections", k))
             continue
         if vs.unit and vd.unit and vs.unit != vd.unit:
             problems.append(loaded.problem(f"unit mismatch: {conn.source} is in {vs.unit}, {conn.target} in {vd.unit}",
@@ -240,8 +304,8 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                                                f"(units: {', '.join(sc.units)})", "report", *where))
 
     recorded: list[Port] = []
-    if sc.outputs == "all":
-        recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs()]
+    if sc.outputs == "all":  # every output the master can exchange (FMI 3.0 Binary, clocks, arrays are left out)
+        recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs() if _not_exchanged(v) is None]
     else:
         for k, ref in enumerate(sc.outputs):
             p = port(ref, "output", "outputs", k)
@@ -255,7 +319,9 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
     limits: dict[Port, float] = {}
     for text, limit in sc.limits.max_abs.items():
         p = port(VariableRef.parse(text), "output", "limits", "max_abs", text)
-        if p is not None:
+        if p is not None and descriptions[p[0]].variables[p[1]].fmi_type == "String":
+            problems.append(loaded.problem(f"{text} is a String: max_abs needs a number", "limits", "max_abs", text))
+        elif p is not None:
             limits[p] = limit
 
     order = sc.simulation.order
@@ -276,6 +342,10 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         raise ScenarioError(problems)
     provenance = hooks.provenance() if hooks.provenance is not None else {}
     return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files, provenance)
+
+
+def _items(var: Variable) -> str:
+    return ", ".join(f"{name} = {number}" for name, number in var.items)
 
 
 def _report_templates(sc: Scenario) -> list[tuple[tuple[str, ...], str]]:

@@ -1,7 +1,8 @@
 """The small interface the master talks to, and what it knows about a unit's variables.
 
 The stepping algorithm sees only :class:`Unit`: ``setup``, ``exit_initialization``,
-``step``, ``get_real``/``set_real`` on prepared reference sets, ``terminate``. The
+``step``, ``get_real``/``set_real`` on prepared reference sets (the fast path for Real values),
+``get_values``/``set_values`` for every other type (plain Python values), ``terminate``. The
 FMI-backed implementation is :class:`orchestration.master.fmu_unit.FmuUnit`; tests drive the
 algorithm with fake units that implement the same methods in plain Python.
 """
@@ -21,12 +22,58 @@ class Variable:
 
     name: str
     vr: int
-    type: str  # Real, Integer, Boolean, String, Enumeration
+    type: str  # Real, Integer, Boolean, String, Enumeration (FMI 3.0: Float64 is Real, Int32/Int64 Integer)
     causality: str
     variability: str
     unit: str | None = None
     start: Any = None
     description: str = ""
+    declared_type: str = ""  # the type as the FMU declares it (FMI 3.0: Float64, Int64, ...); empty: ``type``
+    items: tuple[tuple[str, int], ...] = ()  # Enumeration: (item name, value) of its type definition
+
+    @property
+    def fmi_type(self) -> str:
+        """The type as the FMU declares it: FMI 2.0 Real ... Enumeration, FMI 3.0 Float64, Int8 ... UInt64, ..."""
+        if self.type.endswith(" array") or not self.declared_type:
+            return self.type
+        return self.declared_type
+
+    @property
+    def fast_real(self) -> bool:
+        """Exchanged through the Real fast path (prepared arrays): FMI 2.0 Real and FMI 3.0 Float64."""
+        return self.type == "Real"
+
+
+INTEGER_RANGES: dict[str, tuple[int, int]] = {
+    "Integer": (-(2**31), 2**31 - 1),  # FMI 2.0 fmi2Integer
+    "Int8": (-(2**7), 2**7 - 1), "UInt8": (0, 2**8 - 1),
+    "Int16": (-(2**15), 2**15 - 1), "UInt16": (0, 2**16 - 1),
+    "Int32": (-(2**31), 2**31 - 1), "UInt32": (0, 2**32 - 1),
+    "Int64": (-(2**63), 2**63 - 1), "UInt64": (0, 2**64 - 1),
+}
+"""Value ranges of the integer types (FMI 2.0 Integer and the FMI 3.0 integer types)."""
+
+EXCHANGED_TYPES = frozenset({"Real", "Float64", "Float32", "Boolean", "String", "Enumeration", *INTEGER_RANGES})
+"""Types the master connects, sets and records (FMI 3.0 Binary, clocks and arrays are refused)."""
+
+_SAME_VALUES = {"Float64": "Real", "Int32": "Integer"}  # FMI 3.0 types with the FMI 2.0 type's exact value set
+
+
+def exchange_kind(fmi_type: str) -> str:
+    """The value set of a declared type: two ports connect only when theirs are equal (no conversions).
+
+    FMI 2.0 Real and FMI 3.0 Float64 are the same IEEE double, FMI 2.0 Integer and FMI 3.0
+    Int32 the same 32-bit integer, an Enumeration is an Enumeration in both versions; every
+    other type only matches itself.
+    """
+    return _SAME_VALUES.get(fmi_type, fmi_type)
+
+
+def value_range(fmi_type: str, fmi_version: str = "2.0") -> tuple[int, int] | None:
+    """The range of an integer or enumeration type (FMI 2.0 enumerations are 32-bit, FMI 3.0 ones 64-bit)."""
+    if fmi_type == "Enumeration":
+        return INTEGER_RANGES["Int64" if fmi_version.startswith("3.") else "Integer"]
+    return INTEGER_RANGES.get(fmi_type)
 
 
 @dataclass(frozen=True)
@@ -79,6 +126,13 @@ class Unit(Protocol):
 
     def set_real(self, handle: Any, values: np.ndarray) -> None:
         """Set the prepared references to ``values``."""
+
+    def get_values(self, fmi_type: str, refs: Sequence[int]) -> list[Any]:
+        """Values of variables of any other type (``fmi_type`` as :attr:`Variable.fmi_type`): int for
+        integer and enumeration types, bool for Boolean, str for String, float for Real/Float*."""
+
+    def set_values(self, fmi_type: str, refs: Sequence[int], values: Sequence[Any]) -> None:
+        """Set variables of any other type to plain Python values (as :meth:`get_values` returns them)."""
 
     def step(self, t: float, h: float) -> None:
         """Advance from t to t + h [s]."""

@@ -170,6 +170,8 @@ def plan_content(pp: PortablePlan) -> dict[str, Any]:
         "recorded": [list(p) for p in plan.recorded],
         "limits": sorted([list(p), v] for p, v in plan.limits.items()),
         "simulation": plan.loaded.scenario.simulation.model_dump(mode="json"),
+        "interfaces": {u: [spec.interface, spec.relative_tolerance]
+                       for u, spec in sorted(plan.loaded.scenario.units.items())},
     }
 
 

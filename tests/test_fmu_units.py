@@ -1,0 +1,119 @@
+"""Every unit string our FMUs declare is what the README's FMU table says, and a valid SI unit.
+
+The README's "FMU variables" table is read as written (m/s², N·s/m, A·s^½/m^½, "–" for
+none) and turned into FMI unit syntax; each declared ``Unit`` is parsed here into SI base
+exponents (N = kg·m·s⁻²) and compared with the ``BaseUnit`` the modelDescription gives
+(none may be given only where a power is fractional).
+"""
+
+from __future__ import annotations
+
+import re
+from fractions import Fraction
+
+import pytest
+from fmpy import read_model_description
+
+from .conftest import PROJECT
+
+DERIVED = {"N": {"kg": 1, "m": 1, "s": -2}}
+BASE = {"kg", "m", "s", "A", "K", "mol", "cd"}
+
+
+def si_exponents(unit: str) -> dict[str, Fraction]:
+    """SI base exponents of an FMI-style unit string such as ``N.s/(m.A)`` or ``m0.5/s1.5``."""
+    if unit == "1":
+        return {}
+    numerator, _, denominator = unit.partition("/")
+    out: dict[str, Fraction] = {}
+    for part, sign in ((numerator, 1), (denominator.strip("()"), -1)):
+        if not part or part == "1":
+            continue
+        for factor in re.split(r"\.(?=[a-zA-Z])", part):  # "A.s0.5": a dot before a letter joins factors
+            m = re.fullmatch(r"([a-zA-Z]+)(-?\d+(?:\.\d+)?)?", factor)
+            assert m, f"{unit!r}: cannot read the factor {factor!r}"
+            symbol, power = m.group(1), Fraction(m.group(2) or "1")
+            assert symbol in BASE or symbol in DERIVED, f"{unit!r}: {symbol!r} is not an SI unit symbol"
+            for base, exp in DERIVED.get(symbol, {symbol: 1}).items():
+                out[base] = out.get(base, Fraction(0)) + sign * power * exp
+    return {k: v for k, v in out.items() if v != 0}
+
+
+def readme_units() -> dict[str, dict[str, str | None]]:
+    """FMU -> variable name pattern -> unit in FMI syntax (None: no unit), from the README's table."""
+    text = (PROJECT / "README.md").read_text()
+    table = text[text.index("## FMU variables"):]
+    table = table[: table.index("\n## ", 3)]
+    out: dict[str, dict[str, str | None]] = {}
+    fmu = ""
+    for line in table.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) != 5 or not cells[1].startswith("`"):
+            continue
+        if cells[0]:
+            fmu = re.match(r"\*\*(\w+)\*\*", cells[0]).group(1)
+        names_text, units_text = cells[1], cells[3]
+        if "…" in names_text or units_text in ("SI", "as the isolator", ""):
+            continue  # ranges checked against another unit below (or only for being SI)
+        names = [re.sub(r"_j\b", r"_\\d+", n) for n in re.findall(r"`([^`]+)`", names_text)]
+        units = [u.strip() for u in units_text.replace(" / ", ",").split(",")]
+        if len(units) == 1:
+            units *= len(names)
+        assert len(units) == len(names), f"README row {line!r}: {len(names)} variables, {len(units)} units"
+        for name, unit in zip(names, units, strict=True):
+            out.setdefault(fmu, {})[name] = None if unit in ("–", "-") else _fmi_syntax(unit)
+    return out
+
+
+def _fmi_syntax(unit: str) -> str:
+    return unit.replace("²", "2").replace("·", ".").replace("^½", "0.5").replace("^1.5", "1.5")
+
+
+def _declared(fmu_dir, name: str) -> tuple[dict[str, str | None], dict]:
+    md = read_model_description(str(fmu_dir / f"{name}.fmu"))
+    return {v.name: v.unit for v in md.modelVariables}, {u.name: u for u in md.unitDefinitions}
+
+
+FMUS = ["GroundMotionSource", "ShearBuilding", "MreIsolator", "MreIsolatorC", "SosmCurrentController",
+        "ConstantCurrent", "SwitchingCurrentController", "BoucWenIsolator"]
+
+
+@pytest.mark.parametrize("name", FMUS)
+def test_declared_units_are_si_and_match_their_base_units(fmu_dir, name):
+    units, definitions = _declared(fmu_dir, name)
+    assert set(filter(None, units.values())) <= set(definitions)
+    for unit, definition in definitions.items():
+        exponents = si_exponents(unit)
+        base = definition.baseUnit
+        if base is None:  # allowed only where FMI's integer exponents cannot say it
+            assert any(e.denominator != 1 for e in exponents.values()), unit
+        else:
+            given = {k: getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd") if getattr(base, k)}
+            assert given == exponents, (unit, given, exponents)
+
+
+@pytest.mark.parametrize("name", FMUS)
+def test_declared_units_are_the_readme_units(fmu_dir, name):
+    readme = readme_units()
+    units, _ = _declared(fmu_dir, name)
+    if name == "MreIsolatorC":  # README: "as MreIsolator"
+        assert units == _declared(fmu_dir, "MreIsolator")[0]
+        return
+    rows = readme[name]
+    checked = set()
+    for pattern, unit in rows.items():
+        matching = [v for v in units if re.fullmatch(pattern, v)]
+        assert matching, f"README names {name}.{pattern}, which the FMU does not have"
+        for variable in matching:
+            assert units[variable] == unit, f"{name}.{variable}: declared {units[variable]!r}, README {unit!r}"
+            checked.add(variable)
+    if name == "SosmCurrentController":  # "c0_0 … beta_1 (6): as the isolator"
+        isolator, _ = _declared(fmu_dir, "MreIsolator")
+        for variable in ("c0_0", "k0_0", "alpha_0", "alpha_1", "beta_0", "beta_1"):
+            assert units[variable] == isolator[variable], variable
+            checked.add(variable)
+    unchecked = {v for v, u in units.items() if u is not None} - checked
+    if name == "BoucWenIsolator":  # its coefficients are "SI" in the README: checked for that above
+        unchecked -= {"k_0", "k_1", "c_0", "c_1", "alpha_0", "alpha_1", "beta_0", "beta_1", "gamma_0", "gamma_1",
+                      "delta", "n", "F0", "y"}  # y: the internal hysteretic state, not in the table
+    assert not unchecked, f"{name}: units the README does not give: {sorted(unchecked)}"
