@@ -15,8 +15,8 @@ What ecos does (ecos 0.7, ``simulation.cpp`` and ``fixed_step_algorithm.cpp``):
 * **Time.** ecos adds h to a double each step; with h = 2^-9 s the sum is exact, so both
   masters hand the units the same time points bit for bit (as in ``test_libcosim.py``).
 * **Parameter sets.** ecos collects SSP parameter sets by *name* across components and
-  applies the one ``init(parameter_set=...)`` names. Our exporter names each unit's set
-  after the unit, so the test gives every ``.ssv`` of the extracted package one name.
+  applies the one ``init(parameter_set=...)`` names. Our exporter gives every unit's set
+  the scenario's name, so the exported package runs in ecos as it is.
 * **What it records.** After the exchange ecos writes the new inputs and reads every
   output again, so a feedthrough output read after a step holds the inputs of t + h,
   while the connections carried the value read before that (see above). Our master in
@@ -31,7 +31,6 @@ divided by its peak.
 from __future__ import annotations
 
 import contextlib
-import re
 import zipfile
 from pathlib import Path
 
@@ -48,7 +47,6 @@ from .conftest import PROJECT, shipped_record
 ELCENTRO = PROJECT / "scenarios" / "elcentro.yaml"
 STEP = 2.0**-9  # s: exact in binary, so ecos's accumulated time equals our k*h
 STOP = 4.0  # s
-PARAMETER_SET = "mre-cosim"
 
 
 def _ecos_reason() -> str | None:
@@ -68,20 +66,18 @@ if _REASON is not None:
 pytestmark = pytest.mark.skipif(_REASON is not None, reason=_REASON or "")
 
 
-def run_ecos(package: Path, workdir: Path, names: list[str], step: float,
-             n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+def run_ecos(package: Path, workdir: Path, names: list[str], step: float, n_steps: int,
+             parameter_set: str) -> tuple[np.ndarray, np.ndarray]:
     """Run an exported ``.ssp`` in ecos: (times, values[n_steps + 1, len(names)]) read after each step.
 
     The package is extracted into ``workdir`` (the working directory of the run, so the
-    package-relative record path resolves) and every parameter set is renamed to one name.
+    package-relative record path resolves); ``parameter_set`` is the name every unit's set has
+    (the exported scenario's name).
     """
     from ecospy import EcosLib, EcosSimulation
 
     with zipfile.ZipFile(package) as z:
         z.extractall(workdir)
-    for ssv in (workdir / "resources").glob("*.ssv"):
-        text = ssv.read_text()
-        ssv.write_text(re.sub(r'(<ssv:ParameterSet\b[^>]*\bname=")[^"]*"', rf'\g<1>{PARAMETER_SET}"', text, count=1))
     EcosLib.set_log_level("warn")
     ids = [name.replace(".", "::", 1) for name in names]
     times = np.empty(n_steps + 1)
@@ -89,7 +85,7 @@ def run_ecos(package: Path, workdir: Path, names: list[str], step: float,
     with contextlib.chdir(workdir):
         sim = EcosSimulation(step_size=step, ssp_path=str(workdir))
         try:
-            sim.init(parameter_set=PARAMETER_SET)
+            sim.init(parameter_set=parameter_set)
             for k in range(n_steps + 1):
                 if k:
                     sim.step()
@@ -112,7 +108,7 @@ def runs(tmp_path_factory):
     assert ours.result.complete
     names = [f"{unit}.{var}" for unit, var in plan.recorded]
     n_steps = round(STOP / STEP)
-    times, data = run_ecos(package, tmp / "ecos", names, STEP, n_steps)
+    times, data = run_ecos(package, tmp / "ecos", names, STEP, n_steps, plan.loaded.scenario.name)
     return names, times, data, ours.recorder, plan
 
 

@@ -4,7 +4,8 @@ Package layout written by :func:`export_ssp`::
 
     SystemStructure.ssd          ssd:SystemStructureDescription (SSP 1.0)
     resources/<Model>.fmu        every FMU the scenario uses (once per file)
-    resources/<unit>.ssv         ssv:ParameterSet with the scenario's parameter values of a unit
+    resources/<unit>.ssv         ssv:ParameterSet with the scenario's parameter values of a unit, named
+                                 after the scenario (the same name in every set)
     resources/<record>           data files named with ``!data`` (ground-motion records)
 
 The SSD holds one ``ssd:System`` with a ``ssd:Component`` per unit (``source`` =
@@ -184,8 +185,10 @@ def _write_units(parent: etree._Element, prefix: str, definitions: dict[str, Any
 
 def _parameter_set(plan: SystemPlan, unit: str, data_names: dict[str, str]) -> etree._Element:
     desc = plan.descriptions[unit]
+    # One name for every unit's set (the scenario's): engines that pick parameter sets by name across
+    # components (ecos: init(parameter_set=...)) then apply all of them.
     root = etree.Element(_q("ssv", "ParameterSet"), nsmap={"ssv": SSV, "ssc": SSC, "mre": MRE}, version="1.0",
-                         name=unit)
+                         name=plan.loaded.scenario.name)
     params = etree.SubElement(root, _q("ssv", "Parameters"))
     used: set[str] = set()
     for pname, value in plan.parameters[unit].items():
