@@ -182,3 +182,21 @@ def test_tuning_fanned_out_on_the_engine_equals_tuning_in_process(engine):
     here = tune(plan, spec, ObjectiveSpec(), 3.0)
     there = tune(plan, spec, ObjectiveSpec(), 3.0, evaluate=engine_evaluate(engine, plan))
     assert there["gains"] == here["gains"] and there["history"] == here["history"]
+
+
+def _started_at(payload: float) -> float:
+    started = time.monotonic()  # system-wide clock: comparable between the jobs of one machine
+    time.sleep(0.02)
+    return started
+
+
+def test_jobs_with_costs_start_longest_first():
+    # One worker runs one job at a time, so the order the jobs start in is the order the
+    # scheduler gave them: longest expected first (LPT), whatever order they were listed in.
+    costs = [3.0, 9.0, 1.0, 7.0, 5.0, 8.0, 2.0]
+    with Engine(workers=1) as one:
+        results = one.map(_started_at, costs, costs=costs)
+    assert all(r.ok for r in results)
+    started = [r.value for r in results]
+    by_start = [c for _, c in sorted(zip(started, costs, strict=True))]
+    assert by_start == sorted(costs, reverse=True)

@@ -291,12 +291,15 @@ class Engine:
         isolate: bool = False,
         timeout_s: float | None = None,
         on_done: Callable[[JobResult], None] | None = None,
+        costs: Sequence[float] | None = None,
     ) -> list[JobResult]:
         """``fn(payload)`` for every payload, results in payload order; see the module docstring for faults.
 
         ``keys`` name the jobs (default ``job-<index>``); payloads may hold :meth:`share` handles
-        inside dicts, lists and tuples. On Ctrl-C unfinished jobs are cancelled and
-        KeyboardInterrupt propagates.
+        inside dicts, lists and tuples. ``costs`` (any unit, e.g. steps) are the jobs' expected
+        relative run times: the longest start first, so the last jobs to finish are short ones
+        and the workers run out of work together (longest-processing-time-first). On Ctrl-C
+        unfinished jobs are cancelled and KeyboardInterrupt propagates.
         """
         from distributed import as_completed
         from distributed.client import FutureCancelledError
@@ -304,11 +307,15 @@ class Engine:
         keys = list(keys) if keys is not None else [f"job-{k}" for k in range(len(payloads))]
         if len(keys) != len(payloads):
             raise ValueError("one key per payload")
+        if costs is not None and len(costs) != len(payloads):
+            raise ValueError("one cost per payload")
+        order = sorted(range(len(payloads)), key=lambda k: -costs[k]) if costs is not None else range(len(payloads))
         index: dict[Any, int] = {}
         futures = []
-        for k, payload in enumerate(payloads):
-            fut = self.client.submit(run_task, fn, payload, isolate, timeout_s, pure=False, retries=0,
-                                     key=f"{keys[k]}-{os.urandom(6).hex()}")
+        for rank, k in enumerate(order):
+            # Dask runs a client's tasks by priority, then in submission order: both follow ``order``.
+            fut = self.client.submit(run_task, fn, payloads[k], isolate, timeout_s, pure=False, retries=0,
+                                     key=f"{keys[k]}-{os.urandom(6).hex()}", priority=len(payloads) - rank)
             index[fut.key] = k
             futures.append(fut)
         results: list[JobResult | None] = [None] * len(payloads)

@@ -433,7 +433,9 @@ def run_ida(prepared: PreparedIda, folder: Path, engine: Engine, progress: bool,
                 payloads.append({"plan": shared_plans[(c.rec.id, s)],
                                  "files": {sha: shared_files[sha] for sha in pp.shas},
                                  "scale": scale, "masses": prepared.masses})
-            engine.map(ida_job, payloads, [k for k, *_ in jobs], isolate=True, timeout_s=spec.timeout_s, on_done=done)
+            costs = [prepared.plans[(c.rec.id, s)].plan.loaded.scenario.simulation.n_steps for _, c, s, _ in jobs]
+            engine.map(ida_job, payloads, [k for k, *_ in jobs], isolate=True, timeout_s=spec.timeout_s, on_done=done,
+                       costs=costs)
     except KeyboardInterrupt:
         interrupted = True
         bar.write("interrupted: writing the report of the finished runs")
