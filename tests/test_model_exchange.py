@@ -368,3 +368,25 @@ def test_bad_interface_settings_are_scenario_errors(fmus, tmp_path, spec, text):
         plan_scenario(path)
     (problem,) = info.value.problems
     assert problem.key.startswith("units.osc") and text in problem.message and problem.line is not None
+
+
+def test_the_interface_travels_through_an_ssp_package(fmus, tmp_path, monkeypatch):
+    """A both-interface FMU run as model exchange comes back from SSP export and import as model exchange,
+    with its tolerance, and runs to the same values (the settings ride in an org.mre-cosim.unit annotation)."""
+    from orchestration.interop.ssp import export_ssp, load_ssp
+    from orchestration.master.system import resolve
+
+    units = (f"  osc:\n    fmu: {fmus['OscillatorBoth']}\n    interface: model-exchange\n"
+             "    relative_tolerance: 1.0e-8\n")
+    monkeypatch.chdir(tmp_path)  # an imported package's results folder must be relative
+    plan = plan_scenario(write_scenario(tmp_path, units), ("results.dir=runs",))
+    loaded = load_ssp(export_ssp(plan, tmp_path / "me.ssp"))
+    spec = loaded.scenario.units["osc"]
+    assert (spec.interface, spec.relative_tolerance) == ("model-exchange", 1.0e-8)
+    again = resolve(loaded)
+    (unit,) = again.create_units()
+    assert type(unit) is MeUnit and unit.relative_tolerance == 1.0e-8
+    first = run_plan(plan, tmp_path / "a", plots=False).recorder
+    second = run_plan(again, tmp_path / "b", plots=False).recorder
+    assert np.all(second.column("osc.cosim") == 0.0)  # instantiated as model exchange
+    np.testing.assert_array_equal(second.column("osc.x"), first.column("osc.x"))  # same FMU, same solver, same steps

@@ -18,6 +18,9 @@ element for travels in annotations of type ``org.mre-cosim.*`` that other tools 
   units, connections and times, as JSON (communication step, algorithm, stepping order,
   input rule, recorded outputs, report roles, limits, results folder, description);
 * ``org.mre-cosim.connection`` (on a Connection): ``delayed="true"``;
+* ``org.mre-cosim.unit`` (on a Component, only when the scenario chose them):
+  ``<mre:Interface name="model-exchange" relativeTolerance="1e-08"/>``, the FMU interface
+  the unit runs and its solver's relative tolerance;
 * ``org.mre-cosim.data-file`` (on an ssv:Parameter): the String value is a file of the
   package, a path relative to the package root (``resources/kobe.csv``), and
   ``<mre:DataFile kind="record"/>`` its kind (the scenario's tag: ``!record`` files are
@@ -72,6 +75,7 @@ FMU_TYPE = "application/x-fmu-sharedlibrary"
 SSV_TYPE = "application/x-ssp-parameter-set"
 SETTINGS_ANNOTATION = "org.mre-cosim.scenario"
 CONNECTION_ANNOTATION = "org.mre-cosim.connection"
+UNIT_ANNOTATION = "org.mre-cosim.unit"
 DATA_FILE_ANNOTATION = "org.mre-cosim.data-file"
 CONNECTOR_KINDS = ("input", "output", "parameter", "calculatedParameter")
 _TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
@@ -243,6 +247,12 @@ def _system_structure(plan: SystemPlan, fmu_names: dict[Path, str], with_ssv: se
         if unit in with_ssv:
             bindings = etree.SubElement(comp, _q("ssd", "ParameterBindings"))
             etree.SubElement(bindings, _q("ssd", "ParameterBinding"), type=SSV_TYPE, source=f"resources/{unit}.ssv")
+        spec = sc.units[unit]
+        if spec.interface is not None or spec.relative_tolerance is not None:
+            attrs = {"name": spec.interface} if spec.interface is not None else {}
+            if spec.relative_tolerance is not None:
+                attrs["relativeTolerance"] = repr(float(spec.relative_tolerance))
+            etree.SubElement(_annotation(comp, "ssd", UNIT_ANNOTATION), _q("mre", "Interface"), attrs)
     if sc.connections:
         connections = etree.SubElement(system, _q("ssd", "Connections"))
         for c in sc.connections:
@@ -545,11 +555,22 @@ def _read_system(reader: _Reader, ssd: etree._Element) -> dict[str, Any]:
         declared = {c.get("name"): c.get("kind") for c in comp.findall("ssd:Connectors/ssd:Connector", NS)}
         connectors[unit] = declared
         data["units"][unit] = {"fmu": str(path) if path else source, "parameters": _read_parameters(reader, unit, comp)}
+        ann = _annotation_of(comp, "ssd", UNIT_ANNOTATION)
+        chosen = None if ann is None else ann.find("mre:Interface", NS)
+        if chosen is not None:
+            if chosen.get("name") is not None:
+                data["units"][unit]["interface"] = chosen.get("name")
+            if chosen.get("relativeTolerance") is not None:
+                try:
+                    data["units"][unit]["relative_tolerance"] = _number(chosen.get("relativeTolerance"))
+                except ValueError as exc:
+                    reader.problem(f"component '{unit}': relativeTolerance: {exc}", f"units.{unit}.relative_tolerance",
+                                   SSD_FILE, chosen)
         if path is None:
             reader.problem(f"component '{unit}': FMU '{source}' is not in the package", key, SSD_FILE, comp)
             continue
         try:
-            desc, _ = read_description(path, unit)
+            desc, _ = read_description(path, unit, data["units"][unit].get("interface"))
         except FmuFormatError as exc:
             reader.problem(f"component '{unit}': {exc}", key, SSD_FILE, comp)
             continue
