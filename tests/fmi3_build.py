@@ -20,6 +20,7 @@ from pathlib import Path
 import fmpy
 
 SOURCE = Path(__file__).resolve().parent / "fmi3" / "constant_current3.c"
+REFUSED = SOURCE.parent / "fmi3_refused.h"  # the FMI 3.0 functions the tests' C units refuse (included)
 MODEL_IDENTIFIER = "ConstantCurrent3"
 HEADERS = Path(fmpy.__file__).resolve().parent / "c-code"
 CFLAGS = ("-shared", "-fPIC", "-O2", "-std=c99", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
@@ -105,7 +106,7 @@ def write_fmu(path: Path, files: dict[str, bytes | str]) -> Path:
 def build_constant_current3(dest: Path, output_dependencies: str | None = "3") -> Path:
     """Compile the C unit and package ``dest/ConstantCurrent3.fmu``; raises CalledProcessError on a C error."""
     source = SOURCE.read_bytes()
-    token = "{" + hashlib.sha256(source).hexdigest()[:32] + "}"
+    token = "{" + hashlib.sha256(source + REFUSED.read_bytes()).hexdigest()[:32] + "}"
     binary = f"binaries/{fmpy.platform_tuple}/{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
     with tempfile.TemporaryDirectory() as tmp:
         library = Path(tmp) / f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
@@ -116,6 +117,7 @@ def build_constant_current3(dest: Path, output_dependencies: str | None = "3") -
             "modelDescription.xml": model_description(token, output_dependencies),
             binary: library.read_bytes(),
             f"sources/{SOURCE.name}": source,
+            f"sources/{REFUSED.name}": REFUSED.read_bytes(),
         }
         return write_fmu(Path(dest) / f"{MODEL_IDENTIFIER}.fmu", files)
 
