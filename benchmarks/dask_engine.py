@@ -13,9 +13,7 @@ work on it) spreads over both sides of each ratio; medians over rounds.
    apart because other work on the machine moves the second one: how busy Dask keeps the
    workers (sum of the jobs' times over workers x wall, 2 workers against 1), and how much
    slower each job runs when two run at once (both cores taken: other processes on the
-   machine then compete for them). The second factor is measured on its own too: the same
-   jobs on 1 and 2 plain forked processes (a fresh fork per job, no Dask), longest first;
-   its T(1) / (2 T(2)) is the ceiling this machine allows any scheduler for this work.
+   machine then compete for them). Jobs start longest first (``Engine.map(costs=...)``).
 2. Dask's cost per job: the same jobs one after the other (a) called here in a child process
    exactly as a worker calls them (``child.call_in_child``), (b) through Dask on one worker
    (submit, schedule, ship the shared plan and file handles, run, send back). Cost = (b) / (a) - 1.
@@ -79,26 +77,6 @@ def on_cluster(workers: int, prepared, jobs) -> tuple[float, list[float]]:
     return wall, [r.wall_time_s for r in results]
 
 
-def _run_direct(payload: dict) -> float:
-    start = time.perf_counter()
-    ida_job(payload)
-    return time.perf_counter() - start
-
-
-def plain_pool(workers: int, local: list[dict], costs: list[int]) -> float:
-    """Wall time of the same jobs on ``workers`` plain forked processes (no Dask, no child per job),
-    longest first: what this machine gives that many processes doing this work, the ceiling
-    any scheduler's efficiency is measured against."""
-    import multiprocessing as mp
-
-    order = sorted(range(len(local)), key=lambda k: -costs[k])
-    # a process forked per job from this warm one, as a worker's forkserver forks a child per job
-    with mp.get_context("fork").Pool(workers, maxtasksperchild=1) as pool:
-        start = time.perf_counter()
-        list(pool.imap_unordered(_run_direct, [local[k] for k in order], chunksize=1))
-        return time.perf_counter() - start
-
-
 def _noop(x: int) -> int:
     return x
 
@@ -125,11 +103,8 @@ def main() -> int:
     prepared, jobs = workload(args.levels)
     n = len(jobs)
     local = payloads_local(prepared, jobs)
-    costs = [prepared.plans[key].plan.loaded.scenario.simulation.n_steps for key, _ in jobs]
-    t1, t2, t_child, t_dask, t_direct, u1, u2, slow, p1, p2 = [], [], [], [], [], [], [], [], [], []
+    t1, t2, t_child, t_dask, t_direct, u1, u2, slow = [], [], [], [], [], [], [], []
     for _ in range(args.rounds):
-        p1.append(plain_pool(1, local, costs))
-        p2.append(plain_pool(2, local, costs))
         wall1, jobs1 = on_cluster(1, prepared, jobs)
         wall2, jobs2 = on_cluster(2, prepared, jobs)
         t1.append(wall1)
@@ -150,9 +125,9 @@ def main() -> int:
     noop, noop_child = per_task_cost()
     m = {k: statistics.median(v) for k, v in
          {"t1": t1, "t2": t2, "child": t_child, "dask": t_dask, "direct": t_direct, "u1": u1, "u2": u2,
-          "slow": slow, "p1": p1, "p2": p2}.items()}
+          "slow": slow}.items()}
     eff = m["t1"] / (2 * m["t2"])
-    ceiling = m["p1"] / (2 * m["p2"])
+    per_round = [a / (2 * b) for a, b in zip(t1, t2, strict=True)]
     cost = m["dask"] / m["child"] - 1
     isolation = m["child"] / m["direct"] - 1
     print(f"load average at start {load_start[0]:.2f}, at end {os.getloadavg()[0]:.2f}; {n} jobs, {args.rounds} rounds")
@@ -163,11 +138,8 @@ def main() -> int:
     print(f"| wall, 2 workers | {m['t2']:.2f} s ({', '.join(f'{v:.2f}' for v in t2)}) |")
     print(f"| **parallel efficiency** T(1) / (2 T(2)) | **{eff:.3f}** (rounds: "
           f"{', '.join(f'{a / (2 * b):.2f}' for a, b in zip(t1, t2, strict=True))}) |")
-    print(f"| same jobs on plain forked processes, no Dask: 1 process, 2 processes | {m['p1']:.2f} s, "
-          f"{m['p2']:.2f} s |")
-    print(f"| **the machine's ceiling** for this work: T(1) / (2 T(2)) of the plain processes | **{ceiling:.3f}** "
-          f"(rounds: {', '.join(f'{a / (2 * b):.2f}' for a, b in zip(p1, p2, strict=True))}) |")
-    print(f"| **Dask's efficiency against that ceiling** | **{eff / ceiling:.3f}** |")
+    print(f"| parallel efficiency, median of the rounds' own | {statistics.median(per_round):.3f} |")
+    print(f"| the machine's factor: 1 / (job time two at a time / one at a time) | {1 / m['slow']:.3f} |")
     print(f"| workers busy (sum of job times / workers x wall): 1 worker, 2 workers | {m['u1']:.3f}, {m['u2']:.3f} |")
     print(f"| job time two at a time / one at a time (CPU shared with the rest of the machine) | {m['slow']:.3f} |")
     print(f"| per job, child process called directly | {m['child']:.3f} s |")
@@ -180,8 +152,7 @@ def main() -> int:
           f"({1e3 * (m['child'] - m['direct']):+.0f} ms) |")
     print(json.dumps({"jobs": n, "rounds": args.rounds, "load_start": load_start, "load_end": os.getloadavg(),
                       "t1": t1, "t2": t2, "child": t_child, "dask": t_dask, "direct": t_direct,
-                      "efficiency": eff, "plain_1": p1, "plain_2": p2, "ceiling": ceiling,
-                      "dask_cost": cost, "isolation_cost": isolation,
+                      "efficiency": eff, "efficiency_rounds": per_round, "dask_cost": cost, "isolation_cost": isolation,
                       "noop_task_s": noop, "noop_child_task_s": noop_child,
                       "busy_1": u1, "busy_2": u2, "slowdown": slow}))
     return 0
