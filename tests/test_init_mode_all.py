@@ -98,7 +98,7 @@ UNITS: dict[str, dict] = {
         "signal": _ISOLATOR_SIGNAL,
     },
     "SosmCurrentController": {
-        "values": {"lambda": 20.0, "rho": 5.0, "i_start": 1.0, "i_max": 2.5, **_CONTROLLER_STARTS},
+        "values": {"lambda": 20.0, "rho": 5.0, "i_start": 1.0, "i_max": 2.5, "s_release": 0.05, **_CONTROLLER_STARTS},
         "required": {},
         "signal": _CONTROLLER_SIGNAL,
     },

@@ -54,3 +54,34 @@ def test_a_missing_run_is_not_judged():
     metrics = {("a", "passive-off"): peaks([1, 2, 3, 4], [3, 2, 1])}
     checks = check_claims(metrics, ["a"], ["passive-off", "sosm"])
     assert by_claim(checks, "control reduces the top-floor", "a", "sosm").holds is None
+
+
+def current_metrics(i_min: float, i_max: float, at_top: float, at_zero: float) -> dict[str, float]:
+    return {"current_min_A": i_min, "current_max_A": i_max, "current_mean_A": (i_min + i_max) / 2,
+            "current_share_at_range_top": at_top, "current_share_at_zero": at_zero}
+
+
+def test_the_fig15_current_claim_needs_the_range_and_no_plateau():
+    from orchestration.studies.claims import PINNED_SHARE, current_claim
+
+    assert current_claim(current_metrics(0.0, 2.5, 0.10, 0.05), (0.0, 2.5), "a", "s").holds is True
+    assert current_claim(current_metrics(0.0, 3.0, 0.00, 0.05), (0.0, 2.5), "a", "s").holds is False  # above 2.5 A
+    # held at the top of the range longer than the plateau allowance: not "varying continuously"
+    assert current_claim(current_metrics(0.0, 2.5, PINNED_SHARE + 0.01, 0.0), (0.0, 2.5), "a", "s").holds is False
+    assert current_claim(current_metrics(0.0, 2.5, PINNED_SHARE, 0.0), (0.0, 2.5), "a", "s").holds is True
+    assert current_claim(current_metrics(0.0, 2.0, 0.0, 0.6), (0.0, 2.5), "a", "s").holds is False  # mostly off
+
+
+def test_claims_are_checked_for_each_controlled_strategy():
+    off = peaks([1, 1, 1, 10], [2, 1, 0.5])
+    metrics = {("a", "passive-off"): off,
+               ("a", "sosm"): peaks([1, 1, 1, 2], [1, 0.5, 0.2]) | current_metrics(0.0, 3.0, 0.9, 0.0),
+               ("a", "sosm-fig15"): peaks([1, 1, 1, 12], [1, 0.5, 0.2]) | current_metrics(0.0, 2.5, 0.1, 0.1)}
+    checks = check_claims(metrics, ["a"], ["passive-off", "sosm", "sosm-fig15"], controlled=["sosm", "sosm-fig15"],
+                          current_range=(0.0, 2.5))
+    assert by_claim(checks, "control reduces the top-floor", "a", "sosm").holds is True
+    assert by_claim(checks, "control reduces the top-floor", "a", "sosm-fig15").holds is False  # 12 > 10
+    assert by_claim(checks, "the current varies", "a", "sosm").holds is False
+    assert by_claim(checks, "the current varies", "a", "sosm-fig15").holds is True
+    # the profile claims are made once per strategy, not once per controlled strategy
+    assert len([c for c in checks if c.claim.startswith("inter-storey drift drops")]) == 3

@@ -108,3 +108,59 @@ def test_default_gains_are_the_tuned_gains():
     assert (g.lam, g.rho, g.zeta, g.theta, g.i_max) == (
         tuned["lambda"], tuned["rho"], tuned["zeta"], tuned["theta"], tuned["i_max"])
     assert g.zeta * g.theta > g.rho  # Eq. (39)
+
+
+# ---------------------------------------------------------------- the release band (a designer's extension, not in
+# the paper: while |s| < s_release the current falls at rate rho)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(finite, finite, finite), min_size=1, max_size=40),
+       st.floats(min_value=0.0, max_value=3.0), st.floats(min_value=1e-4, max_value=0.05))
+def test_a_zero_release_band_is_the_papers_law_exactly(measurements, i0, h):
+    """s_release = 0 (the default): every step is sign(Psi) * u of Eq. (39), integrated and clipped, to the bit."""
+    gains = SosmGains(lam=6.0, rho=0.9, zeta=7.0, theta=1.3, i_max=2.5)
+    assert SosmGains().s_release == 0.0 and gains.s_release == 0.0
+    ctrl = SosmController(gains, i0=i0)
+    i = min(max(i0, 0.0), gains.i_max)
+    for x, v, a in measurements:
+        x, v = x * 1e-5, v * 1e-4  # around rest too, where the band would act
+        s, sdot = v + gains.lam * x, a + gains.lam * v
+        paper = control_direction(x, v, i) * quasi_continuous_rate(s, sdot, gains)
+        assert ctrl.rate(x, v, a) == paper
+        i = min(max(i + h * paper, 0.0), gains.i_max)
+        assert ctrl.update(x, v, a, h) == i
+
+
+def test_the_release_band_releases_the_current_at_rate_rho():
+    """At rest (s = 0 < s_release) the current falls linearly at rho to 0 A and stays there:
+    i(t) = max(i0 - rho t, 0); the paper's law would hold it (sign(Psi) = 0 at rest)."""
+    gains = SosmGains(lam=6.0, rho=0.8, zeta=7.0, theta=1.3, i_max=2.5, s_release=1e-3)
+    h, i0 = 0.01, 2.0
+    ctrl = SosmController(gains, i0=i0)
+    paper = SosmController(SosmGains(lam=6.0, rho=0.8, zeta=7.0, theta=1.3, i_max=2.5), i0=i0)
+    for n in range(1, 400):
+        i = ctrl.update(0.0, 0.0, 0.0, h)
+        # forward Euler of a constant rate is exact up to the rounding of n additions (1e-12 A)
+        assert i == pytest.approx(max(i0 - gains.rho * n * h, 0.0), abs=1e-12), n
+        assert paper.update(0.0, 0.0, 0.0, h) == i0
+    assert ctrl.i == 0.0  # 2 A / 0.8 A/s = 2.5 s < 4 s: released
+
+
+def test_the_release_band_acts_inside_the_band_only():
+    """A small motion with |s| < s_release gives -rho whatever sign(Psi); outside, the paper's rate."""
+    gains = SosmGains(lam=6.0, rho=0.8, zeta=7.0, theta=1.3, i_max=2.5, s_release=1e-3)
+    paper = SosmGains(lam=6.0, rho=0.8, zeta=7.0, theta=1.3, i_max=2.5)
+    for x, v in ((1e-5, 2e-4), (-1e-5, -2e-4), (1e-4, -5e-4), (-1e-4, 5e-4)):
+        s = v + gains.lam * x
+        assert abs(s) < gains.s_release
+        assert control_direction(x, v, 1.0) != 0.0  # the paper's law would act here ...
+        assert SosmController(gains, i0=1.0).rate(x, v, 0.0) == -gains.rho  # ... the band releases instead
+    for x, v in ((1e-3, 2e-3), (-1e-3, -2e-3)):  # |s| = 8e-3 m/s > s_release: the paper's law, to the bit
+        assert SosmController(gains, i0=1.0).rate(x, v, 0.1) == SosmController(paper, i0=1.0).rate(x, v, 0.1)
+
+
+@pytest.mark.parametrize("bad", [-1e-3, math.nan, math.inf])
+def test_the_release_band_must_be_non_negative_and_finite(bad):
+    with pytest.raises(ValueError, match="s_release"):
+        SosmGains(s_release=bad)

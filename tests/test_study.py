@@ -41,11 +41,11 @@ def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 
 def test_shortened_study_end_to_end(tmp_path, elcentro):
-    """First 3 s of two records, passive-off and SOSM, with the Radau reference, through the CLI."""
+    """First 3 s of two records, passive-off and both SOSM gain sets, with the Radau reference, through the CLI."""
     out = tmp_path / "study"
     proc = study_cli(str(STUDY), "--set", "overrides=[simulation.stop_time=3]",
                      "--set", "records={elcentro: elcentro.yaml, hachinohe: hachinohe.yaml}",
-                     "--set", "strategies=[passive-off, sosm]", "--out", str(out), "--quiet", cwd=tmp_path)
+                     "--set", "strategies=[passive-off, sosm, sosm-fig15]", "--out", str(out), "--quiet", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "beyond the identified ±8 mm" in proc.stderr  # El Centro at 0 A goes beyond 8 mm in its first 3 s
     for name in ("peaks.csv", "indices.csv", "reference.csv", "report.md", "report.html", "study.json",
@@ -57,9 +57,9 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     header, peaks = read_csv(out / "peaks.csv")
     assert header == list(PEAK_COLUMNS)
     assert {(r["record"], r["strategy"]) for r in peaks} == {(r, s) for r in ("elcentro", "hachinohe")
-                                                            for s in ("passive-off", "sosm")}
+                                                            for s in ("passive-off", "sosm", "sosm-fig15")}
     header, idx = read_csv(out / "indices.csv")
-    assert header == INDEX_HEADER and len(idx) == 4
+    assert header == INDEX_HEADER and len(idx) == 6
     for row in idx:
         if row["strategy"] == "passive-off":
             assert all(float(row[k]) == 1.0 for k in INDEX_HEADER[2:])
@@ -80,7 +80,8 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
         if row["strategy"] == "passive-off":
             assert float(row["current_max_A"]) == 0.0 and np.all(i == 0.0)
         else:
-            assert 0.0 <= i.min() and i.max() <= 3.0 and float(row["current_mean_A"]) > 0.0
+            limit = 2.5 if row["strategy"] == "sosm-fig15" else 3.0  # the second gain set's own limit
+            assert 0.0 <= i.min() and i.max() <= limit and float(row["current_mean_A"]) > 0.0
 
     # SOSM through the FMUs equals the in-process stepping of the same cores with the tuned gains.
     plan = plan_scenario(PROJECT / "scenarios" / "elcentro.yaml", ("simulation.stop_time=3",))
@@ -100,9 +101,12 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     assert "## The paper's claims on our system" in report
     for record in ("elcentro", "hachinohe"):
         assert f"### {record}" in report
-    assert "vs **passive-off**" in report and "SOSM current:" in report
+    assert "**sosm** vs **passive-off**" in report and "**sosm** current:" in report
+    assert "**sosm-fig15** vs **passive-off**" in report and "### Current statistics (Fig. 15)" in report
+    assert "**amplitude reading**" in report
+    assert (out / "figures" / "pareto.png").stat().st_size > 0  # from the second gain set's tuning evaluations
     html = (out / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 5
+    assert html.count("data:image/png;base64,") == 6
 
     # Regenerating the report from the data gives the same tables.
     before = (out / "peaks.csv").read_text()
@@ -262,6 +266,39 @@ def test_tuning_is_reproducible_and_returns_its_best_point():
     off = peak_values(simulate_coupled(system_setup(plan, 0.0), sim.step, n, sim.algorithm, **extra))
     mine = peak_values(simulate_coupled(system_setup(plan, None, g), sim.step, n, sim.algorithm, **extra))
     assert objective(mine, off, obj) == pytest.approx(a["objective"], rel=1e-12)
+    assert g.s_release == 0.0 and all(h["s_release"] == 0.0 for h in a["history"])  # 4-D: the paper's law
+
+
+def test_tuning_with_a_release_band_searches_it_as_a_fifth_dimension():
+    """Bounds naming s_release (the release band, not in the paper) make it a tuned gain; w_zero adds the
+    share of time at 0 A to J. A tiny tuning: 3 s of El Centro, 3 samples, 4 Nelder-Mead evaluations."""
+    study = load_study(STUDY)
+    plan = plan_scenario(study.scenario_path("elcentro"), run_overrides(study.spec))
+    bounds = {"lam": (0.5, 50.0), "rho": (0.5, 50.0), "theta": (0.1, 10.0), "ratio": (1.05, 20.0),
+              "s_release": (1e-3, 0.05)}
+    spec = TuningSpec(stop_time=3.0, n_samples=3, max_evals=4, seed=7, bounds=bounds)
+    obj = ObjectiveSpec(w_saturation=1.0, w_zero=1.0)
+    a = tune(plan, spec, obj, 2.5)
+    g: SosmGains = a["gains"]
+    assert all(1e-3 * (1 - 1e-9) <= h["s_release"] <= 0.05 * (1 + 1e-9) for h in a["history"])
+    # it is searched, not fixed: the start (its lower bound) and each Latin-hypercube point have their own
+    assert a["history"][0]["s_release"] == pytest.approx(1e-3, rel=1e-12)
+    assert len({h["s_release"] for h in a["history"][:4]}) == 4
+    assert g.s_release == min(a["history"], key=lambda h: h["J"])["s_release"] and g.i_max == 2.5
+    # J of the returned gains recomputed from the trajectories: peaks and the shares at 2.5 A and at 0 A
+    sim = plan.loaded.scenario.simulation
+    n = round(3.0 / sim.step)
+    extra = {"inputs": sim.inputs} if hasattr(sim, "inputs") else {}
+    off = simulate_coupled(system_setup(plan, 0.0), sim.step, n, sim.algorithm, **extra)
+    tr = simulate_coupled(system_setup(plan, None, g), sim.step, n, sim.algorithm, **extra)
+    top = lambda t: np.max(np.abs(t.a[:, -1]))  # noqa: E731
+    drift = lambda t: np.max(np.abs(t.drift))  # noqa: E731
+    j = (0.5 * top(tr) / top(off) + 0.5 * drift(tr) / drift(off)
+         + 10.0 * max(0.0, np.max(np.abs(tr.x[:, 0])) / 0.015 - 1.0)
+         + np.mean(tr.i >= 2.5 - 1e-6) + np.mean(tr.i <= 1e-6))
+    assert j == pytest.approx(a["objective"], rel=1e-12)  # the same numbers summed in another order
+    with pytest.raises(ValueError, match="s_release"):
+        TuningSpec(bounds={**bounds, "gamma": (1.0, 2.0)})
 
 
 def test_shipped_gains_file_fits_the_study():

@@ -16,6 +16,11 @@ convergence argument does not apply globally. :func:`sosm_conditions` also repor
 share of the run where the condition holds pointwise with the global tau
 (rho |Psi(t)| - tau > theta^2 / 2) and with the local |Phi(t)| in place of tau.
 
+The release band ``s_release`` of ``sosm_controller_core`` (a designer's extension, not in
+the paper: while |s| < s_release the current falls at rate rho) is outside the paper's
+argument: inside the band the applied rate is not sign(Psi) u, so the conditions say nothing
+there. They are evaluated the same way with or without it (u measured from the recorded current).
+
 Units: x [m], v [m/s], a [m/s^2], i [A], t [s]; s'' and Phi [m/s^3]; Psi [m/(s^2 A)];
 tau [m/s^3]; v_m, v_M [m/(s^2 A)]; rho [A/s], zeta [A s^0.5 m^-0.5], theta [m^0.5 s^-1.5].
 """

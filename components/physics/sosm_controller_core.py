@@ -18,7 +18,16 @@ The current is integrated with forward Euler over each control step and held in
 [0, i_max] by clipping (the integrator does not wind up past either bound, which is
 Eq. 39's "u = 0 if i > i_M" extended to the lower bound).
 
-Gain units: lambda [1/s], rho [A/s], zeta [A s^0.5 m^-0.5], theta [m^0.5 s^-1.5].
+Release band (a designer's extension, NOT in the paper): with ``s_release`` > 0 [m/s],
+while |s| < s_release the applied rate is -rho, whatever sign(Psi) and u: the current is
+released toward 0 A at the largest rate the law allows. Near rest sign(Psi) ~ -sign(c x_b'
++ k x_b) ~ -sign(s) when lambda ~ k/c, so the paper's law applies ~ +min(rho, zeta theta) > 0
+whatever the motion's sign and the current ramps up to i_max in any quiet stretch of a
+record; the band lets it fall back instead. s_release = 0 (the default) is the paper's law,
+bit for bit (the band test is never true).
+
+Gain units: lambda [1/s], rho [A/s], zeta [A s^0.5 m^-0.5], theta [m^0.5 s^-1.5],
+s_release [m/s].
 """
 
 from __future__ import annotations
@@ -70,12 +79,15 @@ class SosmGains:
     zeta: float = 18.316074974976253  # A s^0.5 m^-0.5
     theta: float = 1.6969098646453915  # m^0.5 s^-1.5
     i_max: float = 3.0  # A
+    s_release: float = 0.0  # m/s: release band (not in the paper); 0 = the paper's law
 
     def __post_init__(self) -> None:
         for name in ("lam", "rho", "zeta", "theta", "i_max"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"SOSM gain {name} must be positive and finite, got {value}")
+        if not (math.isfinite(self.s_release) and self.s_release >= 0):
+            raise ValueError(f"SOSM release band s_release must be >= 0 m/s and finite, got {self.s_release}")
 
 
 # The hand-picked gains used before tuning (and as the tuning's starting point).
@@ -132,6 +144,8 @@ class SosmController:
     def rate(self, x: float, v: float, a: float) -> float:
         """Applied current rate di/dt [A/s] for the measurements and the present current."""
         s, sdot = sliding_variable(x, v, a, self.gains.lam)
+        if abs(s) < self.gains.s_release:  # the release band (not in the paper); never true for s_release = 0
+            return -self.gains.rho
         return control_direction(x, v, self.i, self.coeffs) * quasi_continuous_rate(s, sdot, self.gains)
 
     def update(self, x: float, v: float, a: float, h: float) -> float:

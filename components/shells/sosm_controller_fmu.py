@@ -24,6 +24,8 @@ _GAINS = {
     "zeta": ("zeta", "A.s0.5/m0.5", "quasi-continuous gain zeta"),
     "theta": ("theta", "m0.5/s1.5", "parabola gain theta (the paper's vartheta)"),
     "i_max": ("i_max", "A", "largest current i_M"),
+    # not in the paper: while |s| < s_release the current is released toward 0 at rate rho (0: the paper's law)
+    "s_release": ("s_release", "m/s", "release band on |s| (designer's extension, not in the paper; 0 = off)"),
 }
 # The controller's model of the isolator, used for the sign of Psi (Eq. 34).
 _MODEL = {

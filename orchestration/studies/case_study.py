@@ -18,6 +18,7 @@ Dask cluster (nothing written).
 from __future__ import annotations
 
 import argparse
+import shlex
 import signal
 import sys
 import time
@@ -29,7 +30,7 @@ from orchestration.master.errors import ScenarioError
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
 from orchestration.project import plan_scenario, require_kind
 from orchestration.provenance import provenance
-from orchestration.studies.config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.studies.config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy, StudySpec, load_study
 from orchestration.studies.engine import Engine, EngineUnavailable, JobResult, StudyBar, scheduler_address
 from orchestration.studies.jobs import OUTPUTS_OVERRIDE, cosim_job, reference_job, sweep_job, write_run_files
 from orchestration.studies.portable import PortablePlan, file_bytes, job_key, plan_content, portable
@@ -52,7 +53,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
     parser.add_argument("--resume", type=Path, metavar="DIR",
                         help="finish an interrupted study folder: compute only the jobs whose results are missing")
+    parser.add_argument("--base-sensitivity", action="store_true",
+                        help="instead of the study: its comparisons for base-floor variants (m_b, k_b, c_b), "
+                             "in-process, on a window of each record (orchestration/studies/base_sensitivity.py)")
+    parser.add_argument("--window", type=float, default=None, metavar="S",
+                        help="--base-sensitivity: seconds of each record (default 40)")
     args = parser.parse_args(argv)
+    if args.base_sensitivity and args.study is None:
+        parser.error("--base-sensitivity needs a study file")
     if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
         parser.error("give a study file, or --report DIR, or --resume DIR")
     return args
@@ -80,21 +88,24 @@ def open_engine(args: argparse.Namespace, workers: int | None, max_worker_deaths
 def prepare(study: LoadedStudy) -> dict[str, Any]:
     """Check every run of the study before anything is written; raises ScenarioError or NotMonolithic."""
     spec = study.spec
-    gains_doc = None
-    if "sosm" in spec.strategies:
-        gains, gains_doc = read_gains(study.gains_path)
-        if abs(gains.i_max - spec.i_max) > 1e-12:
-            raise ScenarioError(f"{study.gains_path}: gains tuned for i_max = {gains.i_max} A, the study uses "
-                                f"{spec.i_max} A: re-run the tuning")
+    gain_sets: dict[str, Any] = {}
+    for strategy in (s for s in SOSM_STRATEGIES if s in spec.strategies):
+        path = study.gain_set_path(strategy)
+        gains, gain_sets[strategy] = read_gains(path)
+        i_max = study.gain_set(strategy)[0]
+        if abs(gains.i_max - i_max) > 1e-12:
+            key = "i_max" if strategy == "sosm" else "fig15.i_max"
+            raise ScenarioError(f"{path}: gains tuned for i_max = {gains.i_max} A, the study's {key} is "
+                                f"{i_max} A: re-run the tuning")
     records: dict[str, Any] = {}
     algorithms: dict[str, str] = {}
     step = None
     for r in spec.records:
         path = study.scenario_path(r)
         base = run_overrides(spec)
-        for s in sorted({"passive-off", *(s for s in ("sosm", "on-off") if s in spec.strategies)}):
-            plan = plan_scenario(path, (*base, *strategy_overrides(s, spec.i_max, gains_doc["gains"] if gains_doc
-                                                                   else None, 0.0)))
+        for s in sorted({"passive-off", *(s for s in (*SOSM_STRATEGIES, "on-off") if s in spec.strategies)}):
+            g = gain_sets[s]["gains"] if s in gain_sets else None
+            plan = plan_scenario(path, (*base, *strategy_overrides(s, spec.i_max, g, 0.0)))
         sim = plan.loaded.scenario.simulation
         algorithms[r], step = sim.algorithm, sim.step
         needs_model = "best-constant" in spec.strategies or spec.reference.enabled
@@ -103,8 +114,10 @@ def prepare(study: LoadedStudy) -> dict[str, Any]:
         records[r] = {"scenario": str(path), "stop_time_s": sim.stop_time, "masses_kg": masses,
                       "record_file": str(plan.data_files.get("ground.record", "")),
                       "scale": plan.parameters.get("ground", {}).get("scale"),
+                      "time_scale": plan.parameters.get("ground", {}).get("time_scale", 1.0),
                       "n_isolators": plan.parameters.get("isolator", {}).get("n_isolators")}
-    return {"records": records, "gains": gains_doc, "algorithms": algorithms, "step": step}
+    return {"records": records, "gains": gain_sets.get("sosm"), "gain_sets": gain_sets, "algorithms": algorithms,
+            "step": step}
 
 
 def _job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]
@@ -131,6 +144,8 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], engine
         "config": {**spec.model_dump(), "sweep_currents": spec.sweep.currents(spec.i_max)},
         "strategies": list(spec.strategies), "records": records, "run_overrides": list(base),
         "gains": prepared["gains"], "gains_file": str(study.gains_path) if prepared["gains"] else None,
+        "gain_sets": prepared.get("gain_sets", {}),
+        "gains_files": {s: str(study.gain_set_path(s)) for s in prepared.get("gain_sets", {})},
         "best_current": {}, "sweep": {}, "reference": {}, "runs": [], "indices": {},
         "provenance": {**provenance(), "command": command, "algorithms": prepared["algorithms"],
                        "step_s": prepared["step"]},
@@ -218,7 +233,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], engine
                     data["sweep"][r] = {"ok": res.ok, "error": res.error, **(res.value or {})}
                     if res.ok:
                         data["best_current"][r] = res.value["best_current_A"]
-        gains = prepared["gains"]["gains"] if prepared["gains"] else None
+        gain_sets = {s: doc["gains"] for s, doc in prepared.get("gain_sets", {}).items()}
         runs, references = [], []
         order = sorted(records, key=lambda r: -records[r]["stop_time_s"])  # longest first
         for r in order:
@@ -231,8 +246,8 @@ def run_study(study: LoadedStudy, folder: Path, prepared: dict[str, Any], engine
                     entry["error"] = f"current sweep failed: {data['sweep'].get(r, {}).get('error')}"
                     done(JobResult(key, False, error=entry["error"], status="failed"), stored=True)
                     continue
-                extra = strategy_overrides(s, spec.i_max, gains, data["best_current"].get(r))
-                entry["current_A"] = None if s in ("sosm", "on-off") else float(extra[-1].split("=")[1])
+                extra = strategy_overrides(s, spec.i_max, gain_sets.get(s), data["best_current"].get(r))
+                entry["current_A"] = None if s in (*SOSM_STRATEGIES, "on-off") else float(extra[-1].split("=")[1])
                 entry["overrides"] = list(extra)
                 runs.append(_job(study, key, "cosim", (*base, *extra, OUTPUTS_OVERRIDE), {}))
             if spec.reference.enabled:
@@ -285,6 +300,28 @@ def resumed_study(folder: Path) -> tuple[LoadedStudy, dict[str, Any]]:
                             ) from None
 
 
+def _base_sensitivity(args: argparse.Namespace, study: LoadedStudy, argv: list[str]) -> int:
+    """``--base-sensitivity``: the study's comparisons for base-floor variants into a new folder."""
+    from orchestration.studies.base_sensitivity import WINDOW_S, run_sensitivity, write_sensitivity
+
+    window = WINDOW_S if args.window is None else args.window
+    if not window > 0:
+        raise ValueError(f"--window must be positive, got {window}")
+    for s in ("sosm", "sosm-fig15"):
+        read_gains(study.gain_set_path(s))  # ScenarioError before anything is written
+    engine = open_engine(args, study.spec.workers, study.spec.max_worker_deaths)
+    with engine:
+        try:
+            folder = new_run_folder(Path(study.spec.output), f"{study.spec.name}-base-sensitivity", args.out)
+        except RunFolderExists as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        data = run_sensitivity(study, engine, window)
+    write_sensitivity(folder, data, "python orchestration/study.py " + shlex.join(argv))
+    print(f"base-floor sensitivity done: {folder / 'base_sensitivity.md'} ({data['wall_time_s']:.0f} s)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point; returns the exit code."""
     args = parse_args(argv)
@@ -307,6 +344,8 @@ def main(argv: list[str] | None = None) -> int:
             except ScenarioError:
                 require_kind(args.study, "study")  # a run scenario: name run.py instead
                 raise
+        if args.base_sensitivity:
+            return _base_sensitivity(args, study, sys.argv[1:] if argv is None else argv)
         prepared = prepare(study)
         engine = open_engine(args, study.spec.workers, study.spec.max_worker_deaths)
     except ScenarioError as exc:

@@ -18,8 +18,9 @@ from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems
 from orchestration.master.yaml_source import load_tree
 
-STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "on-off")
+STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")
 UNCONTROLLED = "passive-off"
+SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
 
 
 class _Strict(BaseModel):
@@ -49,36 +50,84 @@ class SweepSpec(_Strict):
 
 
 class ObjectiveSpec(_Strict):
-    """J = w_acc a3/a3_off + w_drift d/d_off + penalty * max(0, x0/x_limit - 1) (dimensionless)."""
+    """J = w_acc a3/a3_off + w_drift d/d_off + penalty max(0, x0/x_limit - 1)
+    + w_saturation s_bound + w_zero s_zero + w_mean_current i_mean/i_max (dimensionless).
+
+    s_bound: share of the run's time with the current at the controller's limit i_max;
+    s_zero: share at 0 A; i_mean: mean current [A]. The current terms are 0 by default (peaks only).
+    """
 
     w_acc: float = 0.5
     w_drift: float = 0.5
     penalty: float = 10.0
     x_limit: float = 0.015  # m, the isolator's device limit
+    w_saturation: float = 0.0
+    w_zero: float = 0.0
+    w_mean_current: float = 0.0
+
+    @model_validator(mode="after")
+    def _check(self) -> ObjectiveSpec:
+        if min(self.w_acc, self.w_drift, self.penalty, self.w_saturation, self.w_zero, self.w_mean_current) < 0:
+            raise ValueError("objective weights must not be negative")
+        if not self.x_limit > 0:
+            raise ValueError(f"objective.x_limit must be positive, got {self.x_limit}")
+        return self
 
 
 class TuningSpec(_Strict):
     """How the SOSM gains are tuned (orchestration/studies/tuning.py); see docs/case_study.md."""
 
-    record: str = "elcentro"
-    stop_time: float | None = None  # s; None: the record scenario's own stop time
+    record: str | list[str] = "elcentro"  # one record, or several: J is then their mean
+    stop_time: float | None = None  # s; None: the record scenario's own stop time (every tuning record)
     seed: int = 1
     n_samples: int = 24  # seeded Latin-hypercube samples
     max_evals: int = 80  # Nelder-Mead evaluations from the best sample
+    # lam [1/s], rho [A/s], theta [m^0.5 s^-1.5], ratio = zeta theta / rho [-]; optional s_release [m/s]: the
+    # release band (not in the paper) is then tuned too, else it stays 0 (the paper's law)
     bounds: dict[str, tuple[float, float]] = Field(default_factory=lambda: {
         "lam": (0.5, 50.0), "rho": (1.0, 200.0), "theta": (0.05, 20.0), "ratio": (1.05, 100.0)})
+
+    @property
+    def records(self) -> list[str]:
+        """The tuning records, in order."""
+        return [self.record] if isinstance(self.record, str) else list(self.record)
+
+    @field_validator("record")
+    @classmethod
+    def _record(cls, value: str | list[str]) -> str | list[str]:
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError("tuning.record needs at least one record, each once")
+        return value
 
     @field_validator("bounds")
     @classmethod
     def _bounds(cls, value: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
-        if set(value) != {"lam", "rho", "theta", "ratio"}:
-            raise ValueError("tuning.bounds needs exactly lam, rho, theta, ratio")
+        if set(value) - {"s_release"} != {"lam", "rho", "theta", "ratio"}:
+            raise ValueError("tuning.bounds needs exactly lam, rho, theta, ratio and optionally s_release")
         for key, (lo, hi) in value.items():
             if not 0 < lo < hi:
                 raise ValueError(f"tuning.bounds.{key} needs 0 < low < high, got {lo}, {hi}")
         if value["ratio"][0] <= 1.0:
             raise ValueError("tuning.bounds.ratio (zeta*theta/rho) must stay above 1 (Eq. 39)")
         return value
+
+
+class GainSetSpec(_Strict):
+    """The second SOSM gain set (strategy ``sosm-fig15``): its own current limit, objective and tuning.
+
+    Tuned by ``python orchestration/tune.py STUDY --gain-set sosm-fig15 --force`` into ``gains``.
+    """
+
+    gains: str = "sosm_gains_fig15.yaml"
+    i_max: float = 2.5  # A: the controller's limit (the isolator keeps the study's i_max)
+    objective: ObjectiveSpec = Field(default_factory=lambda: ObjectiveSpec(w_saturation=1.0))
+    tuning: TuningSpec = Field(default_factory=TuningSpec)
+
+    @model_validator(mode="after")
+    def _check(self) -> GainSetSpec:
+        if not (np.isfinite(self.i_max) and self.i_max > 0):
+            raise ValueError(f"fig15.i_max must be positive, got {self.i_max}")
+        return self
 
 
 class ReferenceSpec(_Strict):
@@ -95,7 +144,7 @@ class StudySpec(_Strict):
     name: str = "case_study"
     description: str = ""
     records: dict[str, str]
-    strategies: list[Literal["passive-off", "passive-on", "best-constant", "sosm", "on-off"]] = Field(
+    strategies: list[Literal["passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off"]] = Field(
         default_factory=lambda: list(STRATEGIES))
     overrides: list[str] = Field(default_factory=list)
     i_max: float = 3.0
@@ -106,6 +155,7 @@ class StudySpec(_Strict):
     sweep: SweepSpec = Field(default_factory=SweepSpec)
     objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
     tuning: TuningSpec = Field(default_factory=TuningSpec)
+    fig15: GainSetSpec = Field(default_factory=GainSetSpec)  # the second gain set (strategy sosm-fig15)
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
     workers: int | None = None  # local cluster: worker processes (None: one per core)
     max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
@@ -126,6 +176,8 @@ class StudySpec(_Strict):
             raise ValueError("workers must be at least 1")
         if self.max_worker_deaths < 0:
             raise ValueError("max_worker_deaths must not be negative")
+        if self.fig15.i_max > self.i_max:
+            raise ValueError(f"fig15.i_max ({self.fig15.i_max} A) must not exceed i_max ({self.i_max} A)")
         return self
 
 
@@ -145,8 +197,18 @@ class LoadedStudy:
     @property
     def gains_path(self) -> Path:
         """The SOSM gains file written by the tuning procedure (absolute)."""
-        p = Path(self.spec.gains)
+        return self.gain_set_path("sosm")
+
+    def gain_set_path(self, strategy: str) -> Path:
+        """The gains file of an SOSM strategy (``sosm`` or ``sosm-fig15``), absolute."""
+        p = Path(self.spec.gains if strategy == "sosm" else self.spec.fig15.gains)
         return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    def gain_set(self, strategy: str) -> tuple[float, ObjectiveSpec, TuningSpec]:
+        """Controller current limit [A], objective and tuning of an SOSM strategy."""
+        if strategy == "sosm":
+            return self.spec.i_max, self.spec.objective, self.spec.tuning
+        return self.spec.fig15.i_max, self.spec.fig15.objective, self.spec.fig15.tuning
 
 
 def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:

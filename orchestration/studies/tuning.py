@@ -5,19 +5,27 @@ with the same communication step and transfer scheme as the master steps the FMU
 10x faster than a co-simulation). The objective, dimensionless, against passive-off (0 A)::
 
     J = w_acc * a3 / a3_off + w_drift * d / d_off + penalty * max(0, x0 / x_limit - 1)
+        + w_saturation * s_bound + w_zero * s_zero + w_mean_current * i_mean / i_max
 
 a3: peak absolute top-floor acceleration [m/s^2]; d: peak inter-storey drift over all
-storeys [m]; x0: peak base (isolator) displacement [m]; x_limit: the device limit (15 mm).
+storeys [m]; x0: peak base (isolator) displacement [m]; x_limit: the device limit (15 mm);
+s_bound: share of the time the current sits at the controller's limit i_max; s_zero: share
+at 0 A; i_mean: mean current [A] (the current weights are 0 for the study's first gain set).
 
-Tuning (one record, by default El Centro): the gains are searched in log space over
-(lambda, rho, theta, ratio) with zeta = ratio * rho / theta, so that zeta * theta > rho
-(Eq. 39) holds by construction: the README default gains, then a seeded Latin hypercube,
-then bounded Nelder-Mead from the best point. The gains are then checked, not re-tuned,
-on the other records. Run::
+Tuning (one record, by default El Centro, or several: J is then their mean): the gains are
+searched in log space over (lambda, rho, theta, ratio) with zeta = ratio * rho / theta, so
+that zeta * theta > rho (Eq. 39) holds by construction, and, if the tuning's bounds name it,
+the release band s_release [m/s] (a designer's extension, not in the paper; see
+sosm_controller_core) as a fifth log dimension: the README default gains (s_release at its
+lower bound), then a seeded Latin hypercube, then bounded Nelder-Mead from the best point. The gains are then
+checked, not re-tuned, on every record. Every evaluation (gains, peaks, current statistics)
+is written to the gains file, with the constant currents on the same window, for the
+report's Pareto plot. Run::
 
-    python orchestration/tune.py scenarios/case_study.yaml [--force]
+    python orchestration/tune.py scenarios/case_study.yaml [--gain-set sosm-fig15] [--force]
 
-It writes the gains file named by the study (``scenarios/sosm_gains.yaml``).
+It writes the gains file named by the study (``scenarios/sosm_gains.yaml``; the second gain
+set ``scenarios/sosm_gains_fig15.yaml``).
 """
 
 from __future__ import annotations
@@ -27,7 +35,7 @@ import math
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -87,18 +95,35 @@ def system_setup(plan: SystemPlan, passive_current: float | None, gains: SosmGai
                        passive_current, gains)
 
 
-def peak_values(tr: Trajectory) -> dict[str, float]:
-    """Peak top-floor acceleration a3 [m/s^2], peak drift d [m] (all storeys), peak base displacement x0 [m]."""
+def peak_values(tr: Trajectory, i_limit: float | None = None) -> dict[str, float]:
+    """Peaks and current statistics of a trajectory.
+
+    a3: peak top-floor absolute acceleration [m/s^2]; d: peak drift, all storeys [m]; x0: peak
+    base displacement [m]; i_mean, i_min, i_max: current [A]; s_bound: share of the time at
+    ``i_limit`` [A] (the controller's limit; None: the largest current of the run), s_zero:
+    share at 0 A (both within 1e-6 A).
+    """
+    i = tr.i
+    limit = float(np.max(i)) if i_limit is None else float(i_limit)
     return {"a3": float(np.max(np.abs(tr.a[:, -1]))), "d": float(np.max(np.abs(tr.drift))),
-            "x0": float(np.max(np.abs(tr.x[:, 0])))}
+            "x0": float(np.max(np.abs(tr.x[:, 0]))), "i_mean": float(np.mean(i)), "i_min": float(np.min(i)),
+            "i_max": float(np.max(i)), "i_limit": limit, "s_bound": float(np.mean(i >= limit - 1e-6)),
+            "s_zero": float(np.mean(i <= 1e-6))}
 
 
 def objective(peaks: dict[str, float], off: dict[str, float], obj: ObjectiveSpec) -> float:
     """The dimensionless objective J of the module docstring (lower is better; passive-off has J = 1 + penalty)."""
-    if not all(math.isfinite(v) for v in peaks.values()):
+    if not all(math.isfinite(peaks[k]) for k in ("a3", "d", "x0")):
         return math.inf
-    return (obj.w_acc * peaks["a3"] / off["a3"] + obj.w_drift * peaks["d"] / off["d"]
-            + obj.penalty * max(0.0, peaks["x0"] / obj.x_limit - 1.0))
+    j = (obj.w_acc * peaks["a3"] / off["a3"] + obj.w_drift * peaks["d"] / off["d"]
+         + obj.penalty * max(0.0, peaks["x0"] / obj.x_limit - 1.0))
+    if obj.w_saturation:
+        j += obj.w_saturation * peaks["s_bound"]
+    if obj.w_zero:
+        j += obj.w_zero * peaks["s_zero"]
+    if obj.w_mean_current:
+        j += obj.w_mean_current * peaks["i_mean"] / peaks["i_limit"]
+    return j
 
 
 def _simulate(setup: SystemSetup, plan: SystemPlan, stop_time: float | None = None) -> Trajectory:
@@ -108,55 +133,105 @@ def _simulate(setup: SystemSetup, plan: SystemPlan, stop_time: float | None = No
     return simulate_coupled(setup, sim.step, round((t_stop - sim.start_time) / sim.step), sim.algorithm, **extra)
 
 
+def evaluate_setting(plan: SystemPlan, setting: float | SosmGains, stop_time: float | None = None
+                     ) -> dict[str, float]:
+    """Peaks and current statistics of one setting: a passive current [A] (a float) or SOSM gains."""
+    if isinstance(setting, SosmGains):
+        return peak_values(_simulate(system_setup(plan, None, setting), plan, stop_time), setting.i_max)
+    setup = system_setup(plan, float(setting))
+    return peak_values(_simulate(setup, plan, stop_time), setup.i_max)
+
+
 def sweep_currents(plan: SystemPlan, currents: list[float], obj: ObjectiveSpec) -> dict[str, Any]:
     """Objective of every constant current [A] on one planned record; the best is the lowest J (ties: lower current)."""
-    off = peak_values(_simulate(system_setup(plan, 0.0), plan))
+    off = evaluate_setting(plan, 0.0)
     rows = []
     for i in currents:
-        p = off if i == 0.0 else peak_values(_simulate(system_setup(plan, i), plan))
+        p = off if i == 0.0 else evaluate_setting(plan, i)
         rows.append({"current_A": i, **p, "J": objective(p, off, obj)})
     best = min(rows, key=lambda r: (r["J"], r["current_A"]))
     return {"rows": rows, "best_current_A": best["current_A"], "best_J": best["J"]}
 
 
+TUNED = ("lam", "rho", "theta", "ratio")  # the tuned dimensions; "s_release" follows if the bounds name it
+
+
+def tuned_keys(tuning: TuningSpec) -> tuple[str, ...]:
+    """The dimensions of the search: lam, rho, theta, ratio and, if its bounds are given, s_release."""
+    return (*TUNED, "s_release") if "s_release" in tuning.bounds else TUNED
+
+
 def gains_from_vector(q: np.ndarray, i_max: float) -> SosmGains:
-    """Gains from q = log(lambda, rho, theta, ratio), zeta = ratio * rho / theta."""
-    lam, rho, theta, ratio = (float(v) for v in np.exp(q))
-    return SosmGains(lam=lam, rho=rho, zeta=ratio * rho / theta, theta=theta, i_max=i_max)
+    """Gains from q = log(lambda, rho, theta, ratio[, s_release]), zeta = ratio * rho / theta."""
+    lam, rho, theta, ratio, *rest = (float(v) for v in np.exp(q))
+    return SosmGains(lam=lam, rho=rho, zeta=ratio * rho / theta, theta=theta, i_max=i_max,
+                     s_release=rest[0] if rest else 0.0)
 
 
-# evaluate(settings, stop_time) -> peaks of each setting: a passive current [A] (float) or SOSM gains
+# evaluate(settings, stop_time) -> peaks of each setting on one record: a passive current [A] (float) or SOSM gains
 Evaluate = Callable[[list[float | SosmGains], float | None], list[dict[str, float]]]
+# evaluate_many([(record, setting), ...], stop_time) -> peaks of each, any records of the tuning
+EvaluateMany = Callable[[list[tuple[str, float | SosmGains]], float | None], list[dict[str, float]]]
 
 
-def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float, progress: bool = False,
-         evaluate: Evaluate | None = None) -> dict[str, Any]:
-    """Tune the SOSM gains on one planned record; returns gains, objective and the evaluation history.
+def _row(g: SosmGains, j: float, per_record: dict[str, dict[str, float]]) -> dict[str, Any]:
+    return {"lam": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, "s_release": g.s_release, "J": j,
+            "records": per_record}
 
-    ``evaluate`` runs a batch of simulations (the passive-off reference and the Latin-hypercube
-    points fan out through it, e.g. on the Dask engine); by default they run here, one by one.
-    The result is the same either way.
+
+def tune(plan: SystemPlan | Mapping[str, SystemPlan], tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
+         progress: bool = False, evaluate: Evaluate | None = None, evaluate_many: EvaluateMany | None = None
+         ) -> dict[str, Any]:
+    """Tune the SOSM gains on the tuning records; returns gains, objective and the evaluation history.
+
+    ``plan``: one planned record, or a mapping record -> plan (J is the mean over them).
+    ``i_max``: the controller's current limit [A]. ``evaluate`` (one plan) or ``evaluate_many``
+    (any) runs a batch of simulations: the passive-off references, the Latin-hypercube points
+    and each Nelder-Mead point on all records fan out through it (e.g. on the Dask engine); by
+    default they run here, one by one. The result is the same either way. Each history row holds the gains, J and, per
+    record, the peaks and current statistics of :func:`peak_values`.
     """
     from scipy.optimize import minimize
     from scipy.stats import qmc
 
-    def run_here(settings: list[float | SosmGains], stop: float | None) -> list[dict[str, float]]:
-        return [peak_values(_simulate(system_setup(plan, s) if isinstance(s, float) else system_setup(plan, None, s),
-                                      plan, stop)) for s in settings]
+    plans = dict(plan) if isinstance(plan, Mapping) else {tuning.records[0]: plan}
 
-    evaluate = evaluate or run_here
+    if evaluate_many is None:
+        if evaluate is not None:
+            if len(plans) != 1:
+                raise ValueError("evaluate runs one record: pass evaluate_many for several")
+            one = evaluate
+
+            def evaluate_many(jobs: list[tuple[str, float | SosmGains]], stop: float | None
+                              ) -> list[dict[str, float]]:
+                return one([s for _, s in jobs], stop)
+        else:
+            def evaluate_many(jobs: list[tuple[str, float | SosmGains]], stop: float | None
+                              ) -> list[dict[str, float]]:
+                return [evaluate_setting(plans[r], s, stop) for r, s in jobs]
     started = time.time()
-    off = evaluate([0.0], tuning.stop_time)[0]
-    keys = ("lam", "rho", "theta", "ratio")
+    off = dict(zip(plans, evaluate_many([(r, 0.0) for r in plans], tuning.stop_time), strict=True))
+    keys = tuned_keys(tuning)
     lo = np.log([tuning.bounds[k][0] for k in keys])
     hi = np.log([tuning.bounds[k][1] for k in keys])
-    history: list[dict[str, float]] = []
+    history: list[dict[str, Any]] = []
     cache: dict[tuple[float, ...], float] = {}
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=1 + tuning.n_samples + tuning.max_evals, desc="tuning", unit="sim", file=sys.stderr)
+        bar = tqdm(total=len(plans) * (1 + tuning.n_samples + tuning.max_evals), desc="tuning", unit="sim",
+                   file=sys.stderr)
+
+    def record(q: np.ndarray, per_record: dict[str, dict[str, float]]) -> float:
+        key = tuple(np.round(q, 12))
+        if key not in cache:  # the batch and f(q) record a point the same way, in the same order
+            g = gains_from_vector(q, i_max)
+            cache[key] = j = float(np.mean([objective(per_record[r], off[r], obj) for r in plans]))
+            history.append(_row(g, j, per_record))
+            if bar is not None:
+                bar.update(len(plans))
+        return cache[key]
 
     def f(q: np.ndarray) -> float:
         q = np.clip(q, lo, hi)
@@ -164,29 +239,24 @@ def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
         if key in cache:
             return cache[key]
         g = gains_from_vector(q, i_max)
-        p = peak_values(_simulate(system_setup(plan, None, g), plan, tuning.stop_time))
-        cache[key] = j = objective(p, off, obj)
-        history.append({"lam": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, **p, "J": j})
-        if bar is not None:
-            bar.update(1)
-        return j
+        return record(q, dict(zip(plans, evaluate_many([(r, g) for r in plans], tuning.stop_time), strict=True)))
 
     d = DEFAULT_GAINS
-    q_default = np.clip(np.log([d.lam, d.rho, d.theta, d.zeta * d.theta / d.rho]), lo, hi)
-    starts = [q_default, *(lo + (hi - lo) * qmc.LatinHypercube(d=4, seed=tuning.seed).random(tuning.n_samples))]
+    start = [d.lam, d.rho, d.theta, d.zeta * d.theta / d.rho]
+    if "s_release" in keys:
+        start.append(tuning.bounds["s_release"][0])  # the band at its narrowest: closest to the paper's law
+    q_default = np.clip(np.log(start), lo, hi)
+    lhs = qmc.LatinHypercube(d=len(keys), seed=tuning.seed).random(tuning.n_samples)
+    starts = [q_default, *(lo + (hi - lo) * lhs)]
     batch = [np.clip(q, lo, hi) for q in starts]
-    for q, p in zip(batch, evaluate([gains_from_vector(q, i_max) for q in batch], tuning.stop_time), strict=True):
-        key = tuple(np.round(q, 12))
-        if key not in cache:  # as f(q) would record it, in the same order
-            g = gains_from_vector(q, i_max)
-            cache[key] = j = objective(p, off, obj)
-            history.append({"lam": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, **p, "J": j})
-            if bar is not None:
-                bar.update(1)
+    flat = evaluate_many([(r, gains_from_vector(q, i_max)) for q in batch for r in plans], tuning.stop_time)
+    for k, q in enumerate(batch):
+        record(q, dict(zip(plans, flat[k * len(plans):(k + 1) * len(plans)], strict=True)))
     values = [f(q) for q in starts]
     q0 = starts[int(np.argmin(values))]
-    simplex = np.array([q0] + [q0 + np.where(np.arange(4) == k, 0.4 * (1 if q0[k] < (lo[k] + hi[k]) / 2 else -1), 0)
-                               for k in range(4)])
+    n = len(keys)
+    simplex = np.array([q0] + [q0 + np.where(np.arange(n) == k, 0.4 * (1 if q0[k] < (lo[k] + hi[k]) / 2 else -1), 0)
+                               for k in range(n)])
     n_before = len(history)
     if tuning.max_evals > 0:
         minimize(f, q0, method="Nelder-Mead", bounds=list(zip(lo, hi, strict=True)),
@@ -194,7 +264,8 @@ def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
     if bar is not None:
         bar.close()
     best = min(history, key=lambda r: r["J"])
-    gains = SosmGains(lam=best["lam"], rho=best["rho"], zeta=best["zeta"], theta=best["theta"], i_max=i_max)
+    gains = SosmGains(lam=best["lam"], rho=best["rho"], zeta=best["zeta"], theta=best["theta"], i_max=i_max,
+                      s_release=best["s_release"])
     return {"gains": gains, "objective": best["J"], "objective_default_gains": history[0]["J"],
             "passive_off": off, "evaluations": len(history), "nelder_mead_evaluations": len(history) - n_before,
             "history": history, "wall_time_s": time.time() - started}
@@ -202,20 +273,22 @@ def tune(plan: SystemPlan, tuning: TuningSpec, obj: ObjectiveSpec, i_max: float,
 
 def check_gains(plan: SystemPlan, gains: SosmGains, obj: ObjectiveSpec,
                 peaks: list[dict[str, float]] | None = None) -> dict[str, float]:
-    """Objective and ratios against passive-off of the given and the default gains on one record (full length).
+    """Objective, ratios against passive-off and current statistics of the given and the default gains
+    on one record (full length).
 
     ``peaks``: the three simulations (passive-off, tuned, default gains) already run elsewhere.
     """
     default = SosmGains(**{**asdict(DEFAULT_GAINS), "i_max": gains.i_max})
     if peaks is None:
-        peaks = [peak_values(_simulate(system_setup(plan, 0.0), plan)),
-                 *(peak_values(_simulate(system_setup(plan, None, g), plan)) for g in (gains, default))]
+        peaks = [evaluate_setting(plan, s) for s in (0.0, gains, default)]
     off = peaks[0]
     out: dict[str, float] = {}
-    for (label, _), p in zip((("tuned", gains), ("default", default)), peaks[1:], strict=True):
+    for label, p in zip(("tuned", "default"), peaks[1:], strict=True):
         out[f"J_{label}"] = objective(p, off, obj)
         out[f"a3_ratio_{label}"] = p["a3"] / off["a3"]
         out[f"drift_ratio_{label}"] = p["d"] / off["d"]
+        for k in ("i_min", "i_max", "i_mean", "s_bound", "s_zero"):
+            out[f"{k}_{label}"] = p[k]
     return out
 
 
@@ -228,31 +301,63 @@ def read_gains(path: Path) -> tuple[SosmGains, dict[str, Any]]:
         doc = yaml.safe_load(path.read_text())
         g = doc["gains"]
         gains = SosmGains(lam=float(g["lambda"]), rho=float(g["rho"]), zeta=float(g["zeta"]),
-                          theta=float(g["theta"]), i_max=float(g["i_max"]))
+                          theta=float(g["theta"]), i_max=float(g["i_max"]), s_release=float(g.get("s_release", 0.0)))
     except (yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
         raise ScenarioError(f"{path}: not a valid SOSM gains file ({exc})") from None
     return gains, doc
 
 
-def gains_document(study: LoadedStudy, result: dict[str, Any], checks: dict[str, dict[str, float]]) -> str:
-    """YAML text of the gains file: gains, procedure, objective on the tuning record, check on the others."""
+EVALUATION_COLUMNS = ("lambda", "rho", "zeta", "theta", "J")
+RECORD_COLUMNS = ("a3", "d", "x0", "i_mean", "s_bound", "s_zero")
+
+
+def evaluations_table(result: dict[str, Any], passive: dict[str, list[dict[str, float]]], currents: list[float]
+                      ) -> dict[str, Any]:
+    """The tuning's evaluations and the constant currents on the same window, as compact tables."""
+    records = list(passive)
+    release = any(h.get("s_release") for h in result["history"])  # a column only if the band was tuned
+    cols = [*EVALUATION_COLUMNS[:4], *(("s_release",) if release else ()), EVALUATION_COLUMNS[4],
+            *(f"{r}.{k}" for r in records for k in RECORD_COLUMNS)]
+    rows = [[h["lam"], h["rho"], h["zeta"], h["theta"], *((h["s_release"],) if release else ()), h["J"],
+             *(h["records"][r][k] for r in records for k in RECORD_COLUMNS)] for h in result["history"]]
+    pcols = ["current_A", *(f"{r}.{k}" for r in records for k in RECORD_COLUMNS)]
+    prows = [[c, *(passive[r][n][k] for r in records for k in RECORD_COLUMNS)] for n, c in enumerate(currents)]
+    return {"sosm": {"columns": cols, "rows": rows}, "passive": {"columns": pcols, "rows": prows}}
+
+
+def read_table(table: dict[str, Any]) -> list[dict[str, float]]:
+    """Rows of a compact table (``columns``, ``rows``) as dictionaries."""
+    return [dict(zip(table["columns"], row, strict=True)) for row in table["rows"]]
+
+
+def gains_document(study: LoadedStudy, result: dict[str, Any], checks: dict[str, dict[str, float]],
+                   strategy: str = "sosm", evaluations: dict[str, Any] | None = None) -> str:
+    """YAML text of the gains file: gains, procedure, objective on the tuning records, check on every record,
+    and (for the Pareto plot) every evaluation of the tuning."""
     g: SosmGains = result["gains"]
-    spec = study.spec
+    _, obj, tuning = study.gain_set(strategy)
+    release = "s_release" in tuning.bounds
     doc = {
-        "gains": {"lambda": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, "i_max": g.i_max},
-        "units": {"lambda": "1/s", "rho": "A/s", "zeta": "A s^0.5 m^-0.5", "theta": "m^0.5 s^-1.5", "i_max": "A"},
+        "gains": {"lambda": g.lam, "rho": g.rho, "zeta": g.zeta, "theta": g.theta, "i_max": g.i_max,
+                  **({"s_release": g.s_release} if release else {})},
+        "units": {"lambda": "1/s", "rho": "A/s", "zeta": "A s^0.5 m^-0.5", "theta": "m^0.5 s^-1.5", "i_max": "A",
+                  **({"s_release": "m/s"} if release else {})},
         "procedure": {
             "study": str(study.path.name),
-            "record": spec.tuning.record,
-            "stop_time_s": spec.tuning.stop_time,
-            "seed": spec.tuning.seed,
-            "n_samples": spec.tuning.n_samples,
-            "max_evals": spec.tuning.max_evals,
-            "bounds": {k: list(v) for k, v in spec.tuning.bounds.items()},
-            "objective": spec.objective.model_dump(),
-            "overrides": list(run_overrides(spec)),
+            "strategy": strategy,
+            "record": tuning.record,
+            "stop_time_s": tuning.stop_time,
+            "seed": tuning.seed,
+            "n_samples": tuning.n_samples,
+            "max_evals": tuning.max_evals,
+            "bounds": {k: list(v) for k, v in tuning.bounds.items()},
+            "objective": obj.model_dump(),
+            "overrides": list(gain_set_overrides(study, strategy)),
             "method": "README default gains + seeded Latin hypercube, then bounded Nelder-Mead in log space "
-                      "over (lambda, rho, theta, zeta*theta/rho); simulate_coupled (in-process, same step/scheme)",
+                      "over (lambda, rho, theta, zeta*theta/rho" + (", s_release" if release else "") + "); "
+                      "J averaged over the tuning records; simulate_coupled (in-process, same step/scheme)"
+                      + ("; s_release is the release band, a designer's extension not in the paper"
+                         if release else ""),
         },
         "result": {
             "objective": result["objective"],
@@ -266,9 +371,12 @@ def gains_document(study: LoadedStudy, result: dict[str, Any], checks: dict[str,
         "commit": _git("rev-parse", "HEAD"),
         "uncommitted_changes": bool(_git("status", "--porcelain", "--", "components", "orchestration")),
     }
+    if evaluations is not None:
+        doc["evaluations"] = evaluations
+    option = "" if strategy == "sosm" else f" --gain-set {strategy}"
     head = ("# SOSM gains written by the tuning procedure (docs/case_study.md); do not edit by hand.\n"
-            f"# Reproduce: python orchestration/tune.py scenarios/{study.path.name} --force\n")
-    return head + yaml.safe_dump(doc, sort_keys=False)
+            f"# Reproduce: python orchestration/tune.py scenarios/{study.path.name}{option} --force\n")
+    return head + yaml.safe_dump(doc, sort_keys=False, width=100000, default_flow_style=None)
 
 
 def _git(*args: str) -> str:
@@ -279,27 +387,35 @@ def _git(*args: str) -> str:
         return ""
 
 
+def gain_set_overrides(study: LoadedStudy, strategy: str) -> tuple[str, ...]:
+    """Overrides of the tuning runs of a gain set: the study's runs, then the controller's own current limit."""
+    i_max, _, _ = study.gain_set(strategy)
+    base = run_overrides(study.spec)
+    if strategy == "sosm":
+        return base
+    # the controller's own limit replaces the study's (one effective assignment, recorded as such)
+    return (*(o for o in base if not o.startswith("controller.i_max=")), f"controller.i_max={i_max}")
+
+
 def tuning_job(payload: dict[str, Any]) -> dict[str, float]:
-    """One simulation on a worker: peaks (a3, d, x0) at a passive current [A] (a float) or with SOSM gains."""
+    """One simulation on a worker: peaks and current statistics at a passive current [A] or with SOSM gains."""
     from orchestration.studies.portable import relocate
 
     plan, _ = relocate(payload["plan"], payload["files"])
-    setting = payload["setting"]
-    setup = system_setup(plan, setting) if isinstance(setting, float) else system_setup(plan, None, setting)
-    return peak_values(_simulate(setup, plan, payload["stop_time"]))
+    return evaluate_setting(plan, payload["setting"], payload["stop_time"])
 
 
-def engine_evaluate(engine: Any, plan: SystemPlan) -> Evaluate:
-    """An ``evaluate`` for :func:`tune` that fans a batch out on a Dask engine (in the workers' processes)."""
+def engine_evaluate_many(engine: Any, plans: Mapping[str, SystemPlan]) -> EvaluateMany:
+    """An ``evaluate_many`` for :func:`tune` that fans a batch out on a Dask engine (in the workers' processes)."""
     from orchestration.studies.portable import file_bytes, portable
 
-    pp = portable(plan)
-    files = {sha: engine.share(path.read_bytes()) for sha, path in file_bytes([pp]).items()}
-    shared = engine.share(pp, dedupe=False)
+    pps = {r: portable(p) for r, p in plans.items()}
+    files = {sha: engine.share(path.read_bytes()) for sha, path in file_bytes(list(pps.values())).items()}
+    shared = {r: engine.share(pp, dedupe=False) for r, pp in pps.items()}
 
-    def evaluate(settings: list[float | SosmGains], stop: float | None) -> list[dict[str, float]]:
-        results = engine.map(tuning_job, [{"plan": shared, "files": files, "setting": s, "stop_time": stop}
-                                          for s in settings])
+    def evaluate(jobs: list[tuple[str, float | SosmGains]], stop: float | None) -> list[dict[str, float]]:
+        results = engine.map(tuning_job, [{"plan": shared[r], "files": {sha: files[sha] for sha in pps[r].shas},
+                                           "setting": s, "stop_time": stop} for r, s in jobs])
         bad = [r for r in results if not r.ok]
         if bad:
             raise RuntimeError(f"tuning simulation {bad[0].status}: {bad[0].error}\n{bad[0].details}")
@@ -308,15 +424,24 @@ def engine_evaluate(engine: Any, plan: SystemPlan) -> Evaluate:
     return evaluate
 
 
+def engine_evaluate(engine: Any, plan: SystemPlan) -> Evaluate:
+    """An ``evaluate`` for :func:`tune` on one record, on a Dask engine."""
+    many = engine_evaluate_many(engine, {"record": plan})
+    return lambda settings, stop: many([("record", s) for s in settings], stop)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """CLI: tune the SOSM gains of a study and write its gains file."""
+    """CLI: tune the SOSM gains of a study (or its second gain set) and write the gains file."""
     from orchestration.studies.engine import Engine, EngineUnavailable, scheduler_address
 
     parser = argparse.ArgumentParser(prog="tune.py", description="Tune the SOSM gains of a study.")
     parser.add_argument("study", type=Path, help="study YAML file (scenarios/case_study.yaml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a study key (e.g. tuning.max_evals=10)")
-    parser.add_argument("--out", type=Path, help="gains file to write (default: the study's 'gains')")
+    parser.add_argument("--gain-set", choices=("sosm", "sosm-fig15"), default="sosm",
+                        help="which gain set: the study's 'gains' (sosm, default) or 'fig15.gains' (sosm-fig15: "
+                             "the controller limit, objective and tuning of the study's 'fig15' section)")
+    parser.add_argument("--out", type=Path, help="gains file to write (default: the gain set's file)")
     parser.add_argument("--force", action="store_true", help="replace an existing gains file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--scheduler", metavar="ADDRESS", help="fan the sample evaluations and checks out on an "
@@ -326,13 +451,17 @@ def main(argv: list[str] | None = None) -> int:
     try:
         study = load_study(args.study, tuple(args.overrides))
         spec = study.spec
-        if spec.tuning.record not in spec.records:
-            raise ScenarioError(f"tuning.record {spec.tuning.record!r} is not one of the records {list(spec.records)}")
-        out = args.out if args.out is not None else study.gains_path
+        i_max, obj, tuning = study.gain_set(args.gain_set)
+        where = "tuning" if args.gain_set == "sosm" else "fig15.tuning"
+        unknown = [r for r in tuning.records if r not in spec.records]
+        if unknown:
+            raise ScenarioError(f"{where}.record {unknown} is not one of the records {list(spec.records)}")
+        out = args.out if args.out is not None else study.gain_set_path(args.gain_set)
         if out.exists() and not args.force:
             print(f"error: {out} exists: pass --force to replace it", file=sys.stderr)
             return 2
-        plans = {r: plan_scenario(study.scenario_path(r), run_overrides(spec)) for r in spec.records}
+        overrides = gain_set_overrides(study, args.gain_set)
+        plans = {r: plan_scenario(study.scenario_path(r), overrides) for r in spec.records}
         for plan in plans.values():
             system_setup(plan, 0.0)  # NotMonolithic before any work
         engine = Engine(scheduler_address(args.scheduler), args.workers or spec.workers,
@@ -343,20 +472,25 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with engine:
         print(engine.describe(), file=sys.stderr)
-        result = tune(plans[spec.tuning.record], spec.tuning, spec.objective, spec.i_max, progress=not args.quiet,
-                      evaluate=engine_evaluate(engine, plans[spec.tuning.record]))
+        tuned_on = {r: plans[r] for r in tuning.records}
+        many = engine_evaluate_many(engine, plans)
+        result = tune(tuned_on, tuning, obj, i_max, progress=not args.quiet, evaluate_many=many)
         g = result["gains"]
+        currents = spec.sweep.currents(spec.i_max)
+        flat = many([(r, c) for r in tuned_on for c in currents], tuning.stop_time)  # the passive points
+        passive = {r: flat[k * len(currents):(k + 1) * len(currents)] for k, r in enumerate(tuned_on)}
         default = SosmGains(**{**asdict(DEFAULT_GAINS), "i_max": g.i_max})
-        checks = {}
-        for r, p in plans.items():  # passive-off, tuned, default gains of every record, all at once
-            checks[r] = engine_evaluate(engine, p)([0.0, g, default], None)
-        checks = {r: check_gains(plans[r], g, spec.objective, peaks) for r, peaks in checks.items()}
+        flat = many([(r, s) for r in plans for s in (0.0, g, default)], None)  # every record, whole length
+        checks = {r: check_gains(plans[r], g, obj, flat[3 * k:3 * k + 3]) for k, r in enumerate(plans)}
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_text(out, gains_document(study, result, checks))
-    print(f"tuned on {spec.tuning.record}: J = {result['objective']:.4f} "
+    write_text(out, gains_document(study, result, checks, args.gain_set,
+                                   evaluations_table(result, passive, currents)))
+    print(f"tuned on {', '.join(tuning.records)}: J = {result['objective']:.4f} "
           f"(default gains {result['objective_default_gains']:.4f}), "
-          f"{result['evaluations']} simulations, {result['wall_time_s']:.0f} s")
+          f"{result['evaluations']} points, {result['wall_time_s']:.0f} s")
     print(f"lambda = {g.lam:.4g} 1/s, rho = {g.rho:.4g} A/s, zeta = {g.zeta:.4g}, theta = {g.theta:.4g}: {out}")
     for r, c in checks.items():
-        print(f"  {r}: J tuned {c['J_tuned']:.4f}, default {c['J_default']:.4f}")
+        print(f"  {r}: J tuned {c['J_tuned']:.4f}, default {c['J_default']:.4f}; current {c['i_min_tuned']:.3g}-"
+              f"{c['i_max_tuned']:.3g} A, mean {c['i_mean_tuned']:.3g} A, at the limit "
+              f"{100 * c['s_bound_tuned']:.0f} % of the time")
     return 0
