@@ -6,6 +6,8 @@ exchange FMUs that run are built by tests/me_build.py).
 The C source ``tests/fmi3/constant_current3.c`` is compiled with the system C compiler
 (``$CC``, default ``cc``) against the FMI 3.0 headers fmpy ships (``fmpy/c-code``); the
 modelDescription.xml is written here, with the value references of the C enum.
+:func:`compile_fmu` and :func:`write_fmu` also build the other test C units (tests/typed_build.py,
+tests/me_build.py).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import os
 import subprocess
 import tempfile
 import zipfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import fmpy
@@ -103,23 +106,32 @@ def write_fmu(path: Path, files: dict[str, bytes | str]) -> Path:
     return path
 
 
+def compile_fmu(dest: Path, identifier: str, source: Path, description: Callable[[str], str], *,
+                token_define: str, platform: str, headers: Sequence[Path] = (), defines: Sequence[str] = (),
+                cflags: Sequence[str] = CFLAGS, libs: Sequence[str] = ()) -> Path:
+    """Compile a test unit's C ``source`` (with the local ``headers`` it includes) against fmpy's FMI headers and
+    package ``dest/<identifier>.fmu``: the library under ``binaries/<platform>/``, the sources under
+    ``sources/``, ``description(token)`` as modelDescription.xml. The GUID / instantiation token (passed to the C
+    code as ``token_define``) is a hash of the sources and the identifier. Raises CalledProcessError on a C error.
+    """
+    code = {p.name: p.read_bytes() for p in (source, *headers)}
+    token = "{" + hashlib.sha256(b"".join(code.values()) + identifier.encode()).hexdigest()[:32] + "}"
+    binary = f"binaries/{platform}/{identifier}{fmpy.sharedLibraryExtension}"
+    with tempfile.TemporaryDirectory() as tmp:
+        library = Path(tmp) / f"{identifier}{fmpy.sharedLibraryExtension}"
+        includes = [f"-I{folder}" for folder in dict.fromkeys(h.parent for h in headers)]
+        cmd = [os.environ.get("CC", "cc"), *cflags, f"-I{HEADERS}", *includes, f'-D{token_define}="{token}"',
+               *defines, "-o", str(library), str(source), *libs]
+        subprocess.run(cmd, check=True, capture_output=True, text=True)
+        files = {"modelDescription.xml": description(token), binary: library.read_bytes(),
+                 **{f"sources/{name}": data for name, data in code.items()}}
+        return write_fmu(Path(dest) / f"{identifier}.fmu", files)
+
+
 def build_constant_current3(dest: Path, output_dependencies: str | None = "3") -> Path:
     """Compile the C unit and package ``dest/ConstantCurrent3.fmu``; raises CalledProcessError on a C error."""
-    source = SOURCE.read_bytes()
-    token = "{" + hashlib.sha256(source + REFUSED.read_bytes()).hexdigest()[:32] + "}"
-    binary = f"binaries/{fmpy.platform_tuple}/{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
-    with tempfile.TemporaryDirectory() as tmp:
-        library = Path(tmp) / f"{MODEL_IDENTIFIER}{fmpy.sharedLibraryExtension}"
-        cmd = [os.environ.get("CC", "cc"), *CFLAGS, f"-I{HEADERS}", f'-DINSTANTIATION_TOKEN="{token}"',
-               "-o", str(library), str(SOURCE)]
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
-        files = {
-            "modelDescription.xml": model_description(token, output_dependencies),
-            binary: library.read_bytes(),
-            f"sources/{SOURCE.name}": source,
-            f"sources/{REFUSED.name}": REFUSED.read_bytes(),
-        }
-        return write_fmu(Path(dest) / f"{MODEL_IDENTIFIER}.fmu", files)
+    return compile_fmu(dest, MODEL_IDENTIFIER, SOURCE, lambda token: model_description(token, output_dependencies),
+                       token_define="INSTANTIATION_TOKEN", platform=fmpy.platform_tuple, headers=(REFUSED,))
 
 
 FMI1_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>

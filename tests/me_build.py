@@ -16,16 +16,12 @@ is written here, with the value references of each model's C enum.
 
 from __future__ import annotations
 
-import hashlib
-import os
-import subprocess
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import fmpy
 
-from .fmi3_build import HEADERS, write_fmu
+from .fmi3_build import compile_fmu
 
 SOURCES = Path(__file__).resolve().parent / "me"
 FRAME = SOURCES / "fmi2_frame.h"
@@ -191,23 +187,9 @@ def model_description(model: Model, guid: str) -> str:
 
 def build(model: Model, dest: Path) -> Path:
     """Compile ``model`` and package ``dest/<identifier>.fmu``; raises CalledProcessError on a C error."""
-    source = (SOURCES / model.source).read_bytes()
-    digest = hashlib.sha256(source + FRAME.read_bytes() + model.identifier.encode())
-    guid = "{" + digest.hexdigest()[:32] + "}"
-    binary = f"binaries/{fmpy.platform}/{model.identifier}{fmpy.sharedLibraryExtension}"
-    with tempfile.TemporaryDirectory() as tmp:
-        library = Path(tmp) / f"{model.identifier}{fmpy.sharedLibraryExtension}"
-        cmd = [os.environ.get("CC", "cc"), *CFLAGS, f"-I{HEADERS}", f"-I{SOURCES}", f'-DMODEL_GUID="{guid}"',
-               *(["-DCO_SIMULATION"] if model.co_simulation else []), "-o", str(library),
-               str(SOURCES / model.source), "-lm"]
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
-        files = {
-            "modelDescription.xml": model_description(model, guid),
-            binary: library.read_bytes(),
-            f"sources/{model.source}": source,
-            f"sources/{FRAME.name}": FRAME.read_bytes(),
-        }
-        return write_fmu(Path(dest) / f"{model.identifier}.fmu", files)
+    return compile_fmu(dest, model.identifier, SOURCES / model.source, lambda guid: model_description(model, guid),
+                       token_define="MODEL_GUID", platform=fmpy.platform, headers=(FRAME,),
+                       defines=["-DCO_SIMULATION"] if model.co_simulation else [], cflags=CFLAGS, libs=["-lm"])
 
 
 def build_all(dest: Path) -> dict[str, Path]:

@@ -9,15 +9,11 @@ the C enums. Each unit has, per type, an input ``u_<Type>`` and an output ``y_<T
 
 from __future__ import annotations
 
-import hashlib
-import os
-import subprocess
-import tempfile
 from pathlib import Path
 
 import fmpy
 
-from .fmi3_build import REFUSED, write_fmu
+from .fmi3_build import REFUSED, compile_fmu
 
 HERE = Path(__file__).resolve().parent / "typed"
 HEADERS = Path(fmpy.__file__).resolve().parent / "c-code"
@@ -124,18 +120,9 @@ def description3(token: str) -> str:
 
 
 def _build(dest: Path, source: Path, identifier: str, define: str, description, platform: str) -> Path:
-    code = source.read_bytes()
-    headers = {h.name: h.read_bytes() for h in (REFUSED,) if f'#include "{h.name}"'.encode() in code}
-    token = "{" + hashlib.sha256(code + b"".join(headers.values())).hexdigest()[:32] + "}"
-    binary = f"binaries/{platform}/{identifier}{fmpy.sharedLibraryExtension}"
-    with tempfile.TemporaryDirectory() as tmp:
-        library = Path(tmp) / f"{identifier}{fmpy.sharedLibraryExtension}"
-        cmd = [os.environ.get("CC", "cc"), *CFLAGS, f"-I{HEADERS}", f"-I{REFUSED.parent}", f'-D{define}="{token}"',
-               "-o", str(library), str(source)]
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
-        files = {"modelDescription.xml": description(token), binary: library.read_bytes(),
-                 f"sources/{source.name}": code, **{f"sources/{name}": data for name, data in headers.items()}}
-        return write_fmu(Path(dest) / f"{identifier}.fmu", files)
+    headers = [h for h in (REFUSED,) if f'#include "{h.name}"'.encode() in source.read_bytes()]
+    return compile_fmu(dest, identifier, source, description, token_define=define, platform=platform,
+                       headers=headers, cflags=CFLAGS)
 
 
 def build_typed2(dest: Path) -> Path:
