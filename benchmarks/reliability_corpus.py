@@ -50,6 +50,9 @@ import yaml
 
 PROJECT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(PROJECT))
+
+from tests.tree_mutation import key_paths, mutate  # noqa: E402  (the hostile-input tests' mutations)
+
 SC = PROJECT / "scenarios"
 RECORDS = SC / "records"
 FMUS = PROJECT / "fmus"
@@ -125,29 +128,24 @@ def standalone(path: Path) -> dict[str, Any]:
     return tree
 
 
-def key_paths(tree: Any, path: tuple = ()) -> list[tuple]:
-    out: list[tuple] = []
-    items = list(tree.items()) if isinstance(tree, dict) else list(enumerate(tree)) if isinstance(tree, list) else []
-    for key, value in items:
-        out.append((*path, key))
-        out += key_paths(value, (*path, key))
-    return out
-
-
-def mutated(tree: dict[str, Any], path: tuple, op: str, value: Any) -> dict[str, Any]:
-    out = copy.deepcopy(tree)
-    node = out
-    for part in path[:-1]:
-        node = node[part]
-    if op == "replace":
-        node[path[-1]] = value
-    elif op == "delete":
-        del node[path[-1]]
-    elif isinstance(node, dict):
-        node[f"unknown_{path[-1]}"] = value
+def hostile_zip(kind: str, src: Path, path: Path) -> bool:
+    """Write ``path``: a copy of the archive ``src`` made hostile in one of the ways FMUs and SSP packages share
+    (an entry escaping the folder, an absolute entry, a symbolic link, a zip bomb); False for other kinds."""
+    if kind == "traversal":
+        copy_zip(src, path, extra={"../../escaped.txt": b"x"})
+    elif kind == "absolute":
+        copy_zip(src, path, extra={"/tmp/mre-corpus-escaped.txt": b"x"})
+    elif kind == "symlink":
+        info = zipfile.ZipInfo("resources/link")
+        info.external_attr = 0o120777 << 16
+        copy_zip(src, path, infos=[(info, b"/etc/passwd")])
+    elif kind == "bomb":
+        copy_zip(src, path)
+        with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
+            zeros_entry(z, "resources/zeros.bin", 1100)
     else:
-        node.append(value)
-    return out
+        return False
+    return True
 
 
 def write_yaml(tree: Any) -> Callable[[Path], None]:
@@ -204,7 +202,7 @@ def scenario_cases(rng: random.Random, n: int) -> list[Case]:
         with_out = rng.random() < 0.7
         out.append(Case("scenario: one key changed", f"{k:03d} {label}", "run.py",
                         ["s.yaml", "--no-plots", "--quiet", *(["--out", "out"] if with_out else [])],
-                        write_yaml(mutated(tree, path, op, value)), out="out" if with_out else "runs"))
+                        write_yaml(mutate(tree, path, op, value)), out="out" if with_out else "runs"))
     return out
 
 
@@ -393,19 +391,9 @@ def fmu_cases() -> list[Case]:
     def archive(kind: str) -> Callable[[Path], None]:
         def setup(d: Path) -> None:
             path = d / "bad.fmu"
-            if kind == "traversal":
-                copy_zip(src, path, extra={"../../escaped.txt": b"x"})
-            elif kind == "absolute":
-                copy_zip(src, path, extra={"/tmp/mre-corpus-escaped.txt": b"x"})
-            elif kind == "symlink":
-                info = zipfile.ZipInfo("resources/link")
-                info.external_attr = 0o120777 << 16
-                copy_zip(src, path, infos=[(info, b"/etc/passwd")])
-            elif kind == "bomb":
-                copy_zip(src, path)
-                with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
-                    zeros_entry(z, "resources/zeros.bin", 1100)
-            elif kind == "description bomb":
+            if hostile_zip(kind, src, path):
+                return
+            if kind == "description bomb":
                 copy_zip(src, path, lambda n, b: None if n == "modelDescription.xml" else b)
                 with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
                     zeros_entry(z, "modelDescription.xml", 100)
@@ -503,19 +491,9 @@ def ssp_cases(rng: random.Random, n: int, package: Path) -> list[Case]:
         def setup(d: Path) -> None:
             path = d / "p.ssp"
             ssd = lambda f: (lambda n, b: f(b) if n.endswith(".ssd") else b)  # noqa: E731
-            if kind == "traversal":
-                copy_zip(package, path, extra={"../../escaped.txt": b"x"})
-            elif kind == "absolute":
-                copy_zip(package, path, extra={"/tmp/mre-corpus-escaped.txt": b"x"})
-            elif kind == "symlink":
-                info = zipfile.ZipInfo("resources/link")
-                info.external_attr = 0o120777 << 16
-                copy_zip(package, path, infos=[(info, b"/etc/passwd")])
-            elif kind == "bomb":
-                copy_zip(package, path)
-                with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as z:
-                    zeros_entry(z, "resources/zeros.bin", 1100)
-            elif kind == "20000 entries":
+            if hostile_zip(kind, package, path):
+                return
+            if kind == "20000 entries":
                 copy_zip(package, path, extra={f"resources/e{k}": b"" for k in range(20_000)})
             elif kind == "no SSD":
                 copy_zip(package, path, lambda n, b: None if n.endswith(".ssd") else b)

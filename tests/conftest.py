@@ -5,6 +5,7 @@ from __future__ import annotations
 import atexit
 import os
 import shutil
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -49,3 +50,16 @@ def elcentro() -> Path:
 @pytest.fixture(scope="session")
 def kobe() -> Path:
     return shipped_record("kobe_1995_jma_ns.csv")
+
+
+@pytest.fixture(autouse=True)
+def _signals_not_ignored():  # every test: the Ctrl-C tests of several files need it
+    """SIGINT and SIGTERM handled, not ignored, while a test runs: a runner started in the background
+    (`cmd &`) ignores SIGINT, and the tools started by a Ctrl-C test would inherit that."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in saved.items():
+        if handler is signal.SIG_IGN:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+    yield
+    for sig, handler in saved.items():
+        signal.signal(sig, handler)

@@ -142,8 +142,10 @@ def test_fmi3_unit_protocol_parameters_get_set_step(fmu3):
             unit.set_real(inp, np.array([0.25 * k]))
             unit.step(0.1 * k, 0.1)
             assert unit.get_real(out).tolist() == [7.5 + 0.25 * k]
-        assert unit.get_values(["count", "enabled", "tag", "fail_mode", "current"]) == {
-            "count": 3, "enabled": True, "tag": "north", "fail_mode": 0, "current": 2.5}
+        names = ["count", "enabled", "tag", "fail_mode", "current"]
+        variables = unit.description.variables
+        assert [unit.get_values(variables[n].fmi_type, [variables[n].vr])[0] for n in names] == [
+            3, True, "north", 0, 2.5]
         assert unit.get_real(unit.prepare([])).size == 0
     finally:
         unit.terminate()

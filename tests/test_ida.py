@@ -31,17 +31,6 @@ ENV = {**os.environ, "MRE_COSIM_CODE_VERSION": "tests"}
 
 
 
-@pytest.fixture(autouse=True)
-def _signals_not_ignored():
-    """SIGINT and SIGTERM handled, not ignored, while a test runs: a runner started in the background
-    (`cmd &`) ignores SIGINT, and the tools started by a Ctrl-C test would inherit that."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig, handler in saved.items():
-        if handler is signal.SIG_IGN:
-            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
-    yield
-    for sig, handler in saved.items():
-        signal.signal(sig, handler)
 
 
 def ida_cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
@@ -168,7 +157,10 @@ def test_small_ida_end_to_end_then_resume(tmp_path):
         [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]
 
 
-def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path):
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path, how):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM to the tool alone
+    (as a service manager or ``kill`` sends it): pending runs cancelled, the report of what finished written."""
     out = tmp_path / "study"
     study = small_study(tmp_path, intensity={"measure": "pga", "levels": [0.05, 0.1, 0.15]},
                         window={"tail_s": 1.0}, time_scale=0.5)
@@ -178,7 +170,10 @@ def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path):
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and len(list((out / "jobs").glob("*.json"))) < 2:
         time.sleep(0.2)
-    os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: the whole process group
+    if how == "ctrl-c":
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGTERM)
     stdout, stderr = proc.communicate(timeout=180)
     assert proc.returncode == 1, stderr
     assert "interrupted" in stdout and "Traceback" not in stderr

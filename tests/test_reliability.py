@@ -44,21 +44,11 @@ from orchestration.master.yaml_source import DataFile
 from orchestration.project import file_kind, plan_scenario
 
 from .conftest import PROJECT
+from .tree_mutation import key_paths, mutate
 
 RUN = [sys.executable, str(PROJECT / "orchestration" / "run.py")]
 
 
-@pytest.fixture(autouse=True)
-def _signals_not_ignored():
-    """SIGINT and SIGTERM handled, not ignored, while a test runs: a runner started in the background
-    (`cmd &`) ignores SIGINT, and the tools started by a Ctrl-C test would inherit that."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    for sig, handler in saved.items():
-        if handler is signal.SIG_IGN:
-            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
-    yield
-    for sig, handler in saved.items():
-        signal.signal(sig, handler)
 
 
 @pytest.fixture(scope="module")
@@ -259,39 +249,6 @@ def _standalone(path: Path) -> dict[str, Any]:
 def standalone(path: Path) -> dict[str, Any]:
     """A real scenario as one self-contained tree: ``extends`` merged, FMU paths absolute, a 20-step run."""
     return copy.deepcopy(_standalone(path))
-
-
-def key_paths(tree: Any, path: tuple = ()) -> list[tuple]:
-    """Every key path of a tree (mappings and lists), the tree itself excluded."""
-    out = []
-    if isinstance(tree, dict):
-        items = list(tree.items())
-    elif isinstance(tree, list):
-        items = list(enumerate(tree))
-    else:
-        return out
-    for key, value in items:
-        out.append((*path, key))
-        out += key_paths(value, (*path, key))
-    return out
-
-
-def mutate(tree: dict[str, Any], path: tuple, op: str, value: Any) -> dict[str, Any]:
-    """A copy of the tree with the value at ``path`` replaced, deleted, or given an unknown sibling."""
-    out = copy.deepcopy(tree)
-    node = out
-    for part in path[:-1]:
-        node = node[part]
-    last = path[-1]
-    if op == "replace":
-        node[last] = value
-    elif op == "delete":
-        del node[last]
-    elif isinstance(node, dict):
-        node["unknown_key_" + str(last)] = value
-    else:
-        node.append(value)
-    return out
 
 
 @dataclass

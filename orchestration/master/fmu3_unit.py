@@ -224,16 +224,9 @@ class Fmu3Unit:
             self._typed_cache[key] = groups
         return groups
 
-    def get_values(self, fmi_type: str | Sequence[str], refs: Sequence[int] | None = None) -> Any:
+    def get_values(self, fmi_type: str, refs: Sequence[int]) -> list[Any]:
         """Values of ``refs`` as plain Python values (int, bool, str, float), each read with the FMI 3.0
-        function of its declared type (``fmi_type`` may be that type or the master's name for it).
-
-        The older form ``get_values(names)`` returns ``{name: value}``.
-        """
-        if refs is None:
-            names = list(fmi_type)
-            values = self.get_values("", [self.description.variables[n].vr for n in names])
-            return dict(zip(names, values, strict=True))
+        function of its declared type (``fmi_type`` may be that type or the master's name for it)."""
         out: list[Any] = [None] * len(refs)
         for suffix, vrs, array_type, positions in self._groups(refs):
             n = len(positions)

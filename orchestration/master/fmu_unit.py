@@ -240,16 +240,9 @@ class FmuUnit:
         suffix, vrs, array_type = cached
         return suffix, vrs, array_type()
 
-    def get_values(self, fmi_type: str | Sequence[str], refs: Sequence[int] | None = None) -> Any:
-        """Values of ``refs`` of type ``fmi_type`` as plain Python values (int, bool, str, float).
-
-        The older form ``get_values(names)`` returns ``{name: value}`` for variables of any type.
-        """
-        if refs is None:
-            names = list(fmi_type)
-            return {n: self.get_values(self.description.variables[n].type, [self.description.variables[n].vr])[0]
-                    for n in names}
-        suffix, vrs, values = self._typed_buffers(str(fmi_type), refs)
+    def get_values(self, fmi_type: str, refs: Sequence[int]) -> list[Any]:
+        """Values of ``refs`` of type ``fmi_type`` as plain Python values (int, bool, str, float)."""
+        suffix, vrs, values = self._typed_buffers(fmi_type, refs)
         self._check(f"fmi2Get{suffix}", self._f[f"fmi2Get{suffix}"](self._fmu.component, vrs, len(refs), values))
         out = list(values)[: len(refs)]
         if suffix == "Boolean":

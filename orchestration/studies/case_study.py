@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import signal
 import sys
 import time
 from pathlib import Path
@@ -362,12 +361,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
-    def on_sigterm(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    # SIGTERM raises KeyboardInterrupt here already (components.cli.guarded): handled as Ctrl-C, report written
     try:
         return run_study(study, folder, prepared, engine, not args.quiet, [sys.executable, *sys.argv], resumed)
     finally:
-        signal.signal(signal.SIGTERM, previous)
         engine.close()

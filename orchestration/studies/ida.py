@@ -31,7 +31,6 @@ import io
 import json
 import math
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -526,13 +525,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
-    def on_sigterm(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    # SIGTERM raises KeyboardInterrupt here already (components.cli.guarded): handled as Ctrl-C, report written
     try:
         return run_ida(prepared, folder, engine, not args.quiet, [sys.executable, *sys.argv], resumed)
     finally:
-        signal.signal(signal.SIGTERM, previous)
         engine.close()
         prepared.cleanup()
