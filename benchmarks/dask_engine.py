@@ -1,4 +1,4 @@
-"""Benchmarks of the Dask study engine (not tests): parallel efficiency and Dask's cost per job.
+"""Benchmarks of the Dask study pool (not tests): parallel efficiency and Dask's cost per job.
 
 ``python benchmarks/dask_engine.py [--jobs N] [--rounds R]`` prints Markdown and a JSON line.
 
@@ -13,7 +13,7 @@ work on it) spreads over both sides of each ratio; medians over rounds.
    apart because other work on the machine moves the second one: how busy Dask keeps the
    workers (sum of the jobs' times over workers x wall, 2 workers against 1), and how much
    slower each job runs when two run at once (both cores taken: other processes on the
-   machine then compete for them). Jobs start longest first (``Engine.map(costs=...)``).
+   machine then compete for them). Jobs start longest first (``BatchPool.map(costs=...)``).
 2. Dask's cost per job: the same jobs one after the other (a) called here in a child process
    exactly as a worker calls them (``child.call_in_child``), (b) through Dask on one worker
    (submit, schedule, ship the shared plan and file handles, run, send back). Cost = (b) / (a) - 1.
@@ -33,12 +33,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from orchestration.studies.child import call_in_child
-from orchestration.studies.engine import Engine
-from orchestration.studies.ida import prepare_ida
-from orchestration.studies.ida_config import load_ida
-from orchestration.studies.jobs import ida_job
-from orchestration.studies.portable import file_bytes
+from orchestration.batch.child import call_in_child
+from orchestration.batch.pool import BatchPool
+from orchestration.batch.portable import file_bytes
+from orchestration.ida_study.ida_config import load_ida
+from orchestration.ida_study.ida_jobs import ida_job
+from orchestration.ida_study.ida_plan import prepare_ida
 
 STUDY = Path(__file__).resolve().parents[1] / "scenarios" / "ida_shipped.yaml"
 
@@ -57,21 +57,21 @@ def payloads_local(prepared, jobs) -> list[dict]:
              "scale": scale, "masses": prepared.masses} for key, scale in jobs]
 
 
-def payloads_shared(engine: Engine, prepared, jobs) -> list[dict]:
-    files = {sha: engine.share(p.read_bytes()) for sha, p in file_bytes(list(prepared.plans.values())).items()}
-    plans = {key: engine.share(pp, dedupe=False) for key, pp in prepared.plans.items()}
+def payloads_shared(pool: BatchPool, prepared, jobs) -> list[dict]:
+    files = {sha: pool.share(p.read_bytes()) for sha, p in file_bytes(list(prepared.plans.values())).items()}
+    plans = {key: pool.share(pp, dedupe=False) for key, pp in prepared.plans.items()}
     return [{"plan": plans[key], "files": {sha: files[sha] for sha in prepared.plans[key].shas},
              "scale": scale, "masses": prepared.masses} for key, scale in jobs]
 
 
 def on_cluster(workers: int, prepared, jobs) -> tuple[float, list[float]]:
     """Wall time of the jobs on a fresh local cluster of ``workers`` (cluster start excluded), job times."""
-    with Engine(workers=workers) as engine:
-        payloads = payloads_shared(engine, prepared, jobs)
-        engine.map(ida_job, payloads[:workers], isolate=True)  # warm: each worker has the files and plans
+    with BatchPool(workers=workers) as pool:
+        payloads = payloads_shared(pool, prepared, jobs)
+        pool.map(ida_job, payloads[:workers], isolate=True)  # warm: each worker has the files and plans
         start = time.perf_counter()
         costs = [prepared.plans[key].plan.loaded.scenario.simulation.n_steps for key, _ in jobs]
-        results = engine.map(ida_job, payloads, isolate=True, costs=costs)
+        results = pool.map(ida_job, payloads, isolate=True, costs=costs)
         wall = time.perf_counter() - start
     assert all(r.ok for r in results), [r.error for r in results if not r.ok]
     return wall, [r.wall_time_s for r in results]
@@ -83,13 +83,13 @@ def _noop(x: int) -> int:
 
 def per_task_cost(n: int = 200) -> tuple[float, float]:
     """Dask's own cost per task on one worker [s]: a no-op in the worker, and a no-op in a child of it."""
-    with Engine(workers=1) as engine:
-        engine.map(_noop, [0, 1], isolate=True)
+    with BatchPool(workers=1) as pool:
+        pool.map(_noop, [0, 1], isolate=True)
         start = time.perf_counter()
-        engine.map(_noop, list(range(n)))
+        pool.map(_noop, list(range(n)))
         plain = (time.perf_counter() - start) / n
         start = time.perf_counter()
-        engine.map(_noop, list(range(n // 4)), isolate=True)
+        pool.map(_noop, list(range(n // 4)), isolate=True)
         isolated = (time.perf_counter() - start) / (n // 4)
     return plain, isolated
 

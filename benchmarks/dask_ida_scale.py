@@ -55,7 +55,7 @@ def main() -> int:
     info = json.loads((out / "ida.json").read_text())
     jobs = [json.loads(p.read_text()) for p in (out / "jobs").glob("*.json")]
     costs = [j["wall_time_s"] for j in jobs]
-    n, workers, phase = len(costs), info["engine"]["workers"], info["wall_time_s"]
+    n, workers, phase = len(costs), (info.get("batch") or info["engine"])["workers"], info["wall_time_s"]
     fixed = total - phase
     s = max(0.0, (phase - sum(costs) / workers) / n)
     d = args.per_job_ms / 1e3

@@ -32,7 +32,6 @@ PROJECT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(PROJECT))
 
 from components.identification import bouc_wen_native  # noqa: E402
-from components.identification.config import load_config  # noqa: E402
 from components.identification.ffoa import FFOASettings, ffoa_minimize  # noqa: E402
 from components.identification.identifiers import (  # noqa: E402
     BOUC_WEN_TYPICAL,
@@ -43,7 +42,8 @@ from components.identification.identifiers import (  # noqa: E402
     identify_structured,
 )
 from components.identification.models import BOUC_WEN_PARAMS, bouc_wen_objective  # noqa: E402
-from components.identification.pipeline import group, load_records  # noqa: E402
+from orchestration.identification.ident_config import load_config  # noqa: E402
+from orchestration.identification.ident_pipeline import group, load_records  # noqa: E402
 
 CONFIG = PROJECT / "scenarios" / "identification.yaml"
 

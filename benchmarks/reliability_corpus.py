@@ -64,9 +64,11 @@ TOOLS = {
     "identify.py": [PY, str(PROJECT / "orchestration" / "identify.py")],
     "ssp.py": [PY, str(PROJECT / "orchestration" / "ssp.py")],
     "build": [PY, "-m", "components.build"],
+    "api": [PY, "api_case.py"],  # a Python API script written by the case (engine_cases)
 }
 DOCUMENTED = {"run.py": {0, 1, 2, 130}, "study.py": {0, 1, 2, 130}, "tune.py": {0, 2, 130},
-              "identify.py": {0, 1, 2, 130, 143}, "ssp.py": {0, 2, 130}, "build": {0, 1, 2, 130}}
+              "identify.py": {0, 1, 2, 130, 143}, "ssp.py": {0, 2, 130}, "build": {0, 1, 2, 130},
+              "api": {0, 1, 2}}
 SHORT = "simulation.stop_time=0.05"
 PRECIOUS = "precious.txt"
 IS_ROOT = os.geteuid() == 0
@@ -89,6 +91,10 @@ class Case:
     mount_size: str = "1M"
     out: str | None = "out"  # the output folder the case may create (relative to the case folder)
     timeout: float = 120.0
+    env: dict[str, str] = field(default_factory=dict)  # extra environment variables of the command
+    during: tuple[float, Callable[[Path], None]] | None = None  # (seconds, action on the case folder) while it runs
+    changes: tuple[str, ...] = ()  # existing files the case itself changes (``during``), not counted as changed
+    verify: Callable[[Path, list[int], str], list[str]] | None = None  # more reasons the outcome is not clean
 
 
 @dataclass
@@ -722,6 +728,312 @@ def other_tool_cases() -> list[Case]:
     return out
 
 
+# -- issue 26, the engine's part: environment, provenance, the Python API, exit classes, messages ---------
+
+ENGINE = "26/engine"
+"""Prefix of these classes: ``--only 26/engine`` runs them alone."""
+INTERNALS = ("NoneType", "list index", "int()", "invalid literal", "local variable", "not iterable", "Traceback")
+
+
+def _elc(*sets: str, out: str = "out") -> list[str]:
+    return [str(SC / "elcentro.yaml"), "--set", SHORT, *[a for x in sets for a in ("--set", x)], "--out", out,
+            "--quiet", "--no-plots"]
+
+
+def _says(*words: str, never: tuple[str, ...] = ()) -> Callable[[Path, list[int], str], list[str]]:
+    """Verification: stderr holds every word and none of ``never`` (nor a parser's internals)."""
+    def check(work: Path, codes: list[int], err: str) -> list[str]:
+        missing = [w for w in words if w not in err]
+        leaked = [w for w in (*never, *INTERNALS) if w in err]
+        return ([f"the message lacks {missing}"] if missing else []) + ([f"the message has {leaked}"] if leaked else [])
+    return check
+
+
+def _marked_if_said(work: Path, codes: list[int], err: str) -> list[str]:
+    """'marked incomplete' is said only when summary.json or manifest.json of the run folder says so."""
+    if "(marked incomplete)" not in err:
+        return []
+    for name in ("summary.json", "manifest.json"):
+        try:
+            if json.loads((work / "out" / "run" / name).read_text()).get("complete") is False:
+                return []
+        except (OSError, ValueError):
+            continue
+    return ["says 'partial results (marked incomplete)' but no file of the folder marks it"]
+
+
+def _bounded_isolator(d: Path) -> None:
+    """The isolator FMU with declared bounds: n_isolators in [1, 8], i_max in [0, 5] A."""
+    import re
+
+    def edit(name: str, raw: bytes) -> bytes:
+        if name != "modelDescription.xml":
+            return raw
+        text = re.sub(r'(name="n_isolators"[^>]*>\s*<Integer) ', r'\1 min="1" max="8" ', raw.decode(), count=1)
+        return re.sub(r'(name="i_max"[^>]*>\s*<Real) ', r'\1 min="0" max="5" ', text, count=1).encode()
+    copy_zip(FMUS / "MreIsolator.fmu", d / "bounded.fmu", edit)
+
+
+def _md_edit(pattern: str, replacement: str, flags: int = 0) -> Callable[[Path], None]:
+    import re
+
+    def setup(d: Path) -> None:
+        copy_zip(FMUS / "MreIsolator.fmu", d / "bad.fmu", lambda n, b: re.sub(pattern, replacement, b.decode(), count=1,
+                                                                               flags=flags).encode()
+                 if n == "modelDescription.xml" else b)
+    return setup
+
+
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+_ZERO_RECORD = b"time_s,accel_g\n" + b"".join(f"{k * 0.01:.2f},0\n".encode() for k in range(1001))
+
+
+def _record_truth(work: Path, codes: list[int], err: str) -> list[str]:
+    """A record rewritten with zeros while the run goes: manifest.json's hash is of what was played.
+
+    Exit 0: the hash is the original's and the ground moved, or the zeros' and it did not; exit 1:
+    the message names the record."""
+    if codes == [1]:
+        return [] if "r.csv" in err else ["exit 1 without naming the record"]
+    if codes != [0]:
+        return [f"exit {codes}, expected 0 or 1"]
+    manifest = json.loads((work / "out" / "manifest.json").read_text())
+    digest = manifest["data_files"]["ground.record"]["sha256"]
+    with open(work / "out" / "timeseries.csv") as f:
+        header = f.readline().strip().split(",")
+        k = header.index("ground.ag")
+        moved = any(float(line.split(",")[k]) != 0.0 for line in f)
+    import hashlib
+
+    zeros = hashlib.sha256(_ZERO_RECORD).hexdigest()
+    if digest == zeros:
+        return [] if not moved else ["manifest has the zero record's hash but the ground moved"]
+    if digest == (work / "original.sha").read_text():
+        return [] if moved else ["manifest has the original record's hash but the ground did not move"]
+    return ["manifest hash is of neither record"]
+
+
+def _fmu_truth(work: Path, codes: list[int], err: str) -> list[str]:
+    """An FMU changed while the run goes: exit 1 naming it, or exit 0 with a hash of one of its two versions."""
+    if codes == [1]:
+        return [] if "iso.fmu" in err else ["exit 1 without naming the FMU"]
+    if codes != [0]:
+        return [f"exit {codes}, expected 0 or 1"]
+    digest = json.loads((work / "out" / "manifest.json").read_text())["fmus"]["isolator"]["sha256"]
+    return [] if digest in ((work / "original.sha").read_text(), _sha(work / "iso.fmu")) else \
+        ["manifest hash is of neither version of the FMU"]
+
+
+def _api(body: str) -> Callable[[Path], None]:
+    """Setup: ``api_case.py`` running ``body`` (which may set ``res``); exit 2 on TypeError, ValueError or
+    ScenarioError, 1 on a failed result, 0 on a complete one; anything else is a traceback (not clean)."""
+    text = (f"import sys\nsys.path.insert(0, {str(PROJECT)!r})\nfrom pathlib import Path\nimport shutil, zipfile\n"
+            "from orchestration.api import ScenarioError, load_scenario, run\n"
+            "from orchestration.master.execution import StopRequest\n"
+            f"SC = Path({str(SC)!r}); FMUS = Path({str(FMUS)!r}); SHORT = {SHORT!r}\nres = None\ntry:\n"
+            + "".join(f"    {line}\n" for line in body.splitlines())
+            + "except (TypeError, ValueError, ScenarioError) as exc:\n"
+              "    print(f'error: {type(exc).__name__}: {exc}', file=sys.stderr)\n    sys.exit(2)\n"
+              "if res is None:\n    sys.exit(0)\n"
+              "print(res.status, res.error, file=sys.stdout if res.complete else sys.stderr)\n"
+              "sys.exit(0 if res.complete else 1)\n")
+
+    def setup(d: Path) -> None:  # the files a script uses exist before the case (it writes only its run folder)
+        (d / "api_case.py").write_text(text)
+        shutil.copy(FMUS / "MreIsolator.fmu", d / "iso.fmu")
+        shutil.copy(RECORDS / "elcentro_1940_ns.csv", d / "r.csv")
+        (d / "s.yaml").write_text(f"extends: {SC / 'elcentro.yaml'}\nsimulation: {{stop_time: 0.05}}\n")
+    return setup
+
+
+def engine_cases(base: Path, package: Path) -> list[Case]:
+    """Issue 26 for the engine: MRE_COSIM_* values, inputs changed during a run, the Python API's arguments,
+    problems known before the first step, and messages that say what a file is."""
+    out: list[Case] = []
+    # 10: environment variables
+    bad_values = ["abc", "nan", "-1", "0", "inf", "-inf", "1e300", "0x10", "1,5", "5 MB"]
+    for name in ("MRE_COSIM_MAX_UNPACKED_MB", "MRE_COSIM_MAX_RESULT_MB", "MRE_COSIM_SPILL_MB"):
+        for value in bad_values:
+            if name == "MRE_COSIM_SPILL_MB" and value == "0":
+                continue  # 0 means "always spill": it must run
+            out.append(Case(f"{ENGINE}: environment variables", f"{name}={value}", "run.py", _elc(),
+                            env={name: value}, verify=_says(name, repr(value))))
+    out += [
+        Case(f"{ENGINE}: environment variables", "MRE_COSIM_SPILL_MB=0 (always spill) runs", "run.py", _elc(),
+             env={"MRE_COSIM_SPILL_MB": "0"}, verify=lambda w, c, e: [] if c == [0] else [f"exit {c}"]),
+        Case(f"{ENGINE}: environment variables", "MRE_COSIM_MAX_RESULT_MB=0.001 refuses the run", "run.py", _elc(),
+             env={"MRE_COSIM_MAX_RESULT_MB": "0.001"}, verify=_says("MRE_COSIM_MAX_RESULT_MB", "more than")),
+        Case(f"{ENGINE}: environment variables", "MRE_COSIM_MAX_UNPACKED_MB=abc, ssp.py check", "ssp.py",
+             ["check", str(package)], env={"MRE_COSIM_MAX_UNPACKED_MB": "abc"},
+             verify=_says("MRE_COSIM_MAX_UNPACKED_MB")),
+        Case(f"{ENGINE}: environment variables", "MRE_COSIM_MAX_UNPACKED_MB=-1, run an SSP", "run.py",
+             [str(package), "--out", "out", "--quiet", "--no-plots"], env={"MRE_COSIM_MAX_UNPACKED_MB": "-1"},
+             verify=_says("MRE_COSIM_MAX_UNPACKED_MB")),
+        Case(f"{ENGINE}: environment variables", "MRE_COSIM_SPILL_MB=nan, ssp.py export", "ssp.py",
+             ["export", str(SC / "elcentro.yaml"), "x.ssp"], env={"MRE_COSIM_SPILL_MB": "nan"}, out="x.ssp",
+             verify=_says("MRE_COSIM_SPILL_MB")),
+    ]
+    # 2: provenance, inputs changed while the run goes
+    def record_setup(d: Path) -> None:
+        shutil.copy(RECORDS / "elcentro_1940_ns.csv", d / "r.csv")
+        (d / "original.sha").write_text(_sha(d / "r.csv"))
+
+    def fmu_setup(d: Path) -> None:
+        shutil.copy(FMUS / "MreIsolator.fmu", d / "iso.fmu")
+        (d / "original.sha").write_text(_sha(d / "iso.fmu"))
+
+    def append_entry(d: Path) -> None:
+        with zipfile.ZipFile(d / "iso.fmu", "a") as z:
+            z.writestr("resources/changed.txt", "changed during the run")
+
+    for delay in (0.3, 0.8, 1.5, 2.5, 4.0, 6.0):
+        out.append(Case(f"{ENGINE}: provenance", f"record rewritten {delay} s into the run", "run.py",
+                        [str(SC / "elcentro.yaml"), "--set", "simulation.stop_time=3", "--set",
+                         "ground.record=!record r.csv", "--out", "out", "--quiet", "--no-plots"], record_setup,
+                        during=(delay, lambda d: (d / "r.csv").write_bytes(_ZERO_RECORD)), changes=("r.csv",),
+                        verify=_record_truth))
+    for delay in (0.5, 2.0, 4.0):
+        out.append(Case(f"{ENGINE}: provenance", f"FMU changed {delay} s into the run", "run.py",
+                        [str(SC / "elcentro.yaml"), "--set", "simulation.stop_time=3", "--set",
+                         "units.isolator.fmu=iso.fmu", "--out", "out", "--quiet", "--no-plots"], fmu_setup,
+                        during=(delay, append_entry), changes=("iso.fmu",), verify=_fmu_truth))
+    # 8: the Python API
+    load = "load_scenario(SC / 'elcentro.yaml', [SHORT])"
+    with_fmu = "plan = load_scenario(SC / 'elcentro.yaml', [SHORT, 'units.isolator.fmu=iso.fmu'])\n"
+    with_record = "plan = load_scenario(SC / 'elcentro.yaml', [SHORT, 'ground.record=!record r.csv'])\n"
+    api_cases = {
+        "data_dirs given as one string": "plan = load_scenario(str(SC / 'elcentro.yaml'), [SHORT, "
+                                         "'ground.record=!record r.csv'], data_dirs='.')\n"
+                                         "assert plan.data_files['ground.record'] == Path('r.csv').resolve()\n"
+                                         "res = run(plan, out='out')",
+        "overrides given as one string": "res = run(load_scenario(SC / 'elcentro.yaml', SHORT), out='out')",
+        "run() given a scenario path": "res = run('s.yaml', out='out')",
+        "run() given a missing path": "res = run('nowhere.yaml', out='out')",
+        "run() given a dict": "res = run({'units': {}}, out='out')",
+        "run() given None": "res = run(None, out='out')",
+        "stop=5": f"res = run({load}, out='out', stop=5)",
+        "stop='now'": f"res = run({load}, out='out', stop='now')",
+        "plots='yes'": f"res = run({load}, out='out', plots='yes')",
+        "out=7": f"res = run({load}, out=7)",
+        "out=''": f"res = run({load}, out='')",
+        "load_scenario(None)": "res = run(load_scenario(None), out='out')",
+        "overrides=[1.5]": "res = run(load_scenario(SC / 'elcentro.yaml', [1.5]), out='out')",
+        "data_dirs=5": "res = run(load_scenario(SC / 'elcentro.yaml', [SHORT], data_dirs=5), out='out')",
+        "FMU replaced by garbage between load and run": with_fmu
+            + "Path('iso.fmu').write_bytes(b'garbage')\nres = run(plan, out='out')",
+        "FMU deleted between load and run": with_fmu + "Path('iso.fmu').unlink()\nres = run(plan, out='out')",
+        "FMU given another entry between load and run": with_fmu + "with zipfile.ZipFile('iso.fmu', 'a') as z:\n"
+            "    z.writestr('resources/x.txt', 'x')\nres = run(plan, out='out')",
+        "record rewritten between load and run": with_record
+            + "Path('r.csv').write_text('time_s,accel_g\\n0,0\\n0.05,0.1\\n')\nres = run(plan, out='out')",
+        "stop set before the run": "stop = StopRequest()\nstop.set('asked')\n"
+                                   f"res = run({load}, out='out', stop=stop)",
+    }
+    expect = {"FMU replaced by garbage between load and run": 1, "FMU deleted between load and run": 1,
+              "FMU given another entry between load and run": 1, "record rewritten between load and run": 1,
+              "stop set before the run": 1, "data_dirs given as one string": 0, "overrides given as one string": 0,
+              "run() given a scenario path": 0}
+    for name, body in api_cases.items():
+        want = expect.get(name, 2)
+        out.append(Case(f"{ENGINE}: Python API", name, "api", [], _api(body), changes=("iso.fmu", "r.csv"),
+                        verify=lambda w, c, e, want=want: [] if c == [want] else [f"exit {c}, expected {want}"]))
+    # 9: exit classes
+    typed = base / "typed"
+    typed.mkdir(exist_ok=True)
+    try:
+        from tests.typed_build import build_typed2
+
+        typed_fmu: Path | None = build_typed2(typed)
+    except Exception:  # no C compiler: the native cases are left out
+        typed_fmu = None
+    if typed_fmu is not None:
+        for outputs, label in (("all", "typed outputs"), ("[]", "nothing recorded")):
+            text = (f"name: typed\nunits:\n  a:\n    fmu: {typed_fmu}\nconnections: []\noutputs: {outputs}\n"
+                    "simulation: {step: 0.1, stop_time: 0.5, executor: native}\n")
+            want = 2 if outputs == "all" else None
+            out.append(Case(f"{ENGINE}: exit class", f"executor native, FMI types, {label}", "run.py",
+                            ["s.yaml", "--out", "out", "--quiet", "--no-plots"],
+                            lambda d, text=text: (d / "s.yaml").write_text(text),
+                            verify=(_says("simulation.executor", "native") if want == 2 else None)))
+    out.append(Case(f"{ENGINE}: exit class", "executor native on a Real system runs", "run.py",
+                    _elc("simulation.executor=native"), verify=lambda w, c, e: [] if c == [0] else [f"exit {c}"]))
+    for setting, ok in (("isolator.n_isolators=0", False), ("isolator.n_isolators=9", False),
+                        ("isolator.n_isolators=-1", False), ("isolator.n_isolators=8", True),
+                        ("isolator.i_max=-0.1", False), ("isolator.i_max=5.5", False), ("isolator.i_max=1e9", False),
+                        ("isolator.i_max=5", True)):
+        out.append(Case(f"{ENGINE}: exit class", f"declared min/max: {setting}", "run.py",
+                        _elc("units.isolator.fmu=bounded.fmu", setting), _bounded_isolator,
+                        verify=(lambda w, c, e: [] if c == [0] else [f"exit {c}"]) if ok
+                        else _says("outside its declared range")))
+    bad_records = {"empty": b"", "header only": b"time_s,accel_g\n", "one sample": b"0,0\n",
+                   "binary": bytes(range(256)) * 8, "time going back": b"0,0\n0.02,1\n0.01,2\n",
+                   "NaN sample": b"0,0\n0.01,nan\n0.02,0\n", "text": b"hello world\n"}
+    for name, data in bad_records.items():
+        out.append(Case(f"{ENGINE}: exit class", f"!data record: {name}", "run.py",
+                        _elc("ground.record=!data r.csv"), write_bytes("r.csv", data), verify=_says("r.csv")))
+    if IS_ROOT:
+        for label, argv, size in (("Kobe 20 s on a 1 MiB disk", [str(SC / "kobe.yaml"), "--set",
+                                                                "simulation.stop_time=20"], "1M"),
+                                  ("Kobe 20 s on a 64 KiB disk", [str(SC / "kobe.yaml"), "--set",
+                                                                 "simulation.stop_time=20"], "64K"),
+                                  ("El Centro with plots on a 128 KiB disk", [str(SC / "elcentro.yaml"), "--set",
+                                                                             "simulation.stop_time=2.5"], "128K")):
+            no_plots = [] if "plots" in label else ["--no-plots"]
+            out.append(Case(f"{ENGINE}: exit class", f"disk full: {label}", "run.py",
+                            [*argv, "--out", "out/run", "--quiet", *no_plots], mount="full", mount_size=size,
+                            verify=_marked_if_said))
+    for tool, argv in (("run.py", _elc()), ("ssp.py", ["check", str(package)])):
+        for delay in (0.05, 0.1, 0.2, 0.3, 0.4):
+            out.append(Case(f"{ENGINE}: exit class", f"SIGINT {delay} s after {tool} starts", tool, argv,
+                            signal_after=(signal.SIGINT, delay), out="out" if tool == "run.py" else None))
+    # 11: messages
+    import socket
+
+    def make_socket(path: Path) -> None:
+        sock = socket.socket(socket.AF_UNIX)
+        sock.bind(str(path))
+        sock.close()
+
+    kinds = {"a FIFO": (lambda d: os.mkfifo(d / "r.csv"), "FIFO"),
+             "a folder": (lambda d: (d / "r.csv").mkdir(), "a folder"),
+             "/dev/zero": (lambda d: os.symlink("/dev/zero", d / "r.csv"), "a character device"),
+             "/dev/null": (lambda d: os.symlink("/dev/null", d / "r.csv"), "a character device"),
+             "a symlink to a folder": (lambda d: (os.mkdir(d / "sub"), os.symlink("sub", d / "r.csv")), "a folder"),
+             "a socket": (lambda d: make_socket(d / "r.csv"), "a socket")}
+    for name, (setup, kind) in kinds.items():
+        for tag in ("record", "data"):
+            out.append(Case(f"{ENGINE}: messages", f"!{tag} r.csv is {name}", "run.py",
+                            _elc(f"ground.record=!{tag} r.csv"), setup, verify=_says(kind, never=("not found",))))
+    import re
+
+    descriptions = {
+        "no fmiVersion": (r'fmiVersion="2.0" ', "", "fmiVersion"),
+        "fmiVersion 1.0": (r'fmiVersion="2.0"', 'fmiVersion="1.0"', "FMI 1.0"),
+        "fmiVersion empty": (r'fmiVersion="2.0"', 'fmiVersion=""', "fmiVersion"),
+        "variable without name": (r'(<ScalarVariable) name="[^"]*"', r"\1", "no name attribute"),
+        "variable without valueReference": (r'(<ScalarVariable[^>]*?) valueReference="[^"]*"', r"\1",
+                                            "valueReference"),
+        "valueReference not a number": (r'valueReference="\d+"', 'valueReference="x"', "valueReference 'x'"),
+        "variable without a type element": (r"(<ScalarVariable[^>]*>)\s*<Real[^>]*/>", r"\1", "type elements"),
+        "no ModelVariables": (r"<ModelVariables>.*</ModelVariables>", "", "ModelVariables"),
+        "output index out of range": (r'<Unknown index="\d+"', '<Unknown index="999"', 'index="999"'),
+        "output without index": (r'<Unknown index="\d+"', "<Unknown", "index None"),
+        "dependencies not numbers": (r'dependencies="[^"]*"', 'dependencies="a b"', "dependencies 'a'"),
+        "BaseUnit exponent not a number": (r'<BaseUnit m="-1" A="-1" />', '<BaseUnit m="x" />', "BaseUnit"),
+        "root element renamed": (r"<fmiModelDescription", "<somethingElse", "modelDescription"),
+    }
+    for name, (pattern, replacement, word) in descriptions.items():
+        out.append(Case(f"{ENGINE}: messages", f"modelDescription: {name}", "run.py",
+                        _elc("units.isolator.fmu=bad.fmu"), _md_edit(pattern, replacement, re.S),
+                        verify=_says(word, "units.isolator.fmu")))
+    return out
+
+
 # -- running and classifying ----------------------------------------------------------------------------
 
 _MOUNT_LOCK = threading.Lock()
@@ -804,7 +1116,8 @@ def run_case(case: Case, base: Path, index: int) -> Result:
             resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
     before = _snapshot(work)
     precious = {k: v for k, v in before.items() if v[2] and (k == PRECIOUS or k.startswith(("prev", "runs")))}
-    env = {**os.environ, "TMPDIR": str(tmp), "MRE_COSIM_CRASH_DIR": str(crash), "PYTHONDONTWRITEBYTECODE": "1"}
+    env = {**os.environ, "TMPDIR": str(tmp), "MRE_COSIM_CRASH_DIR": str(crash), "PYTHONDONTWRITEBYTECODE": "1",
+           **case.env}
     cmd = [*TOOLS[case.tool], *case.argv]
     t0 = time.monotonic()
     procs = [subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -815,6 +1128,10 @@ def run_case(case: Case, base: Path, index: int) -> Result:
         for p in procs:
             if p.poll() is None:
                 p.send_signal(sig)
+    if case.during is not None:
+        delay, action = case.during
+        time.sleep(delay)
+        action(work)
     codes, errs = [], []
     for p in procs:
         try:
@@ -840,7 +1157,7 @@ def run_case(case: Case, base: Path, index: int) -> Result:
         if sorted(codes) != [0] + [2] * (case.copies - 1):
             reasons.append(f"concurrent runs ended {sorted(codes)}, expected one 0 and the rest 2")
     new = {k for k in after if k not in before}
-    changed = {k for k in before if k in after and after[k] != before[k] and k != "out"}
+    changed = {k for k in before if k in after and after[k] != before[k] and k != "out" and k not in case.changes}
     top = {k.split("/")[0] for k in new}
     allowed_top = {case.out} if case.out else set()
     for code in set(codes):
@@ -862,6 +1179,11 @@ def run_case(case: Case, base: Path, index: int) -> Result:
         if escaped.exists():
             reasons.append(f"an archive entry escaped to {escaped}")
             escaped.unlink()
+    if case.verify is not None:
+        try:
+            reasons += case.verify(work, codes, "\n".join(errs))
+        except Exception as exc:  # the verification itself could not read what it needs: not clean
+            reasons.append(f"verification failed: {exc!r}")
     if mounted is not None:
         with _MOUNT_LOCK:
             subprocess.run(["umount", str(mounted)], check=False)
@@ -880,14 +1202,15 @@ def _run_case(case: Case, base: Path, index: int) -> Result:
 
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
-    from orchestration.interop.ssp import export_ssp
-    from orchestration.project import plan_scenario
+    from orchestration.engine_hooks import plan_scenario
+    from orchestration.interop.ssp_package import export_ssp
 
     rng = random.Random(seed)
     package = export_ssp(plan_scenario(SC / "elcentro.yaml", (SHORT,)), base / "elcentro.ssp")
     _PACKAGE_LONG = export_ssp(plan_scenario(SC / "kobe.yaml"), base / "kobe.ssp")
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
-            *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases()]
+            *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
+            *engine_cases(base, package)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

@@ -6,7 +6,7 @@ so the machine's load cancels as far as it can:
 
 1. Kobe, co-simulation / in-process cores: the whole command
    ``python orchestration/run.py scenarios/kobe.yaml --out DIR --quiet`` and its stepping
-   (native executor), against ``components.physics.monolithic.simulate_coupled`` stepping the
+   (native executor), against ``orchestration.inprocess.simulate_coupled`` stepping the
    same physics cores with the same scheme; where the whole command's time goes (phases of
    an instrumented run, and a cProfile summary when the 2.0x target is missed);
 2. native executor / bare FMU calls: the same FMI calls of the step program made from a bare
@@ -49,14 +49,17 @@ sys.path.insert(0, str(PROJECT))
 
 from components.build.pythonfmu_units import build, discover  # noqa: E402
 from components.physics.ground_motion_core import GroundMotion, read_record  # noqa: E402
-from components.physics.monolithic import SystemSetup, simulate_coupled, simulate_radau  # noqa: E402
+from components.physics.monolithic import SystemSetup, simulate_radau  # noqa: E402
+from mre_common.c_compile import CompileFailed, CompilerMissing, compile_c  # noqa: E402
+from orchestration.engine_hooks import plan_scenario  # noqa: E402
+from orchestration.inprocess import simulate_coupled  # noqa: E402
 from orchestration.master.session import run_plan  # noqa: E402
-from orchestration.project import plan_scenario  # noqa: E402
 
 SCENARIOS = PROJECT / "scenarios"
 RECORDS = PROJECT / "scenarios" / "records"
 RUN_PY = PROJECT / "orchestration" / "run.py"
 TARGET_WHOLE = 2.0  # issue #17: the whole Kobe command within 2x the in-process stepping of the same cores
+TARGET_OWN = 1.25  # issue #25: the whole Kobe command within 1.25x its own stepping (the rest under a quarter)
 
 
 def table(header: list[str], rows: list[list[object]]) -> str:
@@ -157,8 +160,9 @@ def timed(owner, name, label):
 
 import orchestration.master.native_stepper as native_stepper
 import orchestration.master.recorder as recorder
+import orchestration.master.report as report
 import orchestration.master.session as session
-import orchestration.project as project
+import orchestration.engine_hooks as project
 import orchestration.run as cli
 imported = time.perf_counter() - T0
 timed(project, "plan_scenario", "plan")
@@ -169,7 +173,9 @@ timed(native_stepper.NativeStepper, "run", "stepping")
 timed(session, "write_timeseries", "csv")
 timed(recorder.Recorder, "write_csv", "csv")
 timed(session, "plot", "plots")
-timed(session, "summarize", "summary")
+timed(report.PlotProcess, "start", "plot_fork")
+timed(report.PlotProcess, "wait", "plots_wait")
+timed(session, "report_summary", "summary")
 timed(session, "write_json", "json")
 code = cli.main([scenario, "--out", out, "--quiet", *extra])
 total = time.perf_counter() - T0
@@ -237,7 +243,7 @@ def bench_kobe(tmp: Path, stop: float, rounds: int, profile: bool) -> tuple[dict
                 stepping.append(summary["wall_time_s"])
                 executors.add(summary["executor"])
         rows.append([r + 1, f"{whole[-1]:.2f}", f"{stepping[-1]:.2f}", f"{mono[-1]:.2f}",
-                     f"{whole[-1] / mono[-1]:.2f}", f"{stepping[-1] / mono[-1]:.2f}",
+                     f"{whole[-1] / stepping[-1]:.2f}", f"{whole[-1] / mono[-1]:.2f}", f"{stepping[-1] / mono[-1]:.2f}",
                      f"{whole_cpu[-1]:.2f} / {mono_cpu[-1]:.2f}", load()])
     _, py_summary = whole_command(tmp, (*extra, "--set=simulation.executor=python"))
     t0 = time.perf_counter()
@@ -253,6 +259,7 @@ def bench_kobe(tmp: Path, stop: float, rounds: int, profile: bool) -> tuple[dict
          "no_plots": no_plots, "no_plots_mono": no_plots_mono, "stop": stop, "rounds": rounds,
          "whole_cpu": median(whole_cpu), "mono_cpu": median(mono_cpu)}
     m["ratio_whole"] = m["whole"] / m["mono"]
+    m["ratio_own"] = median([w / s for w, s in zip(whole, stepping, strict=True)])  # pairs of the same run
     m["ratio_stepping"] = m["stepping"] / m["mono"]
     m["ratio_python"] = m["python_stepping"] / py_mono
     m["ratio_no_plots"] = no_plots / no_plots_mono
@@ -262,12 +269,15 @@ def bench_kobe(tmp: Path, stop: float, rounds: int, profile: bool) -> tuple[dict
             f"{' ' + ' '.join(extra) if extra else ''}` (a fresh process: start-up, FMU staleness checks, "
             f"FMU loading, stepping, `timeseries.csv`, plots, JSON). Stepping: `wall_time_s` of that run's "
             f"`summary.json` (executor: {', '.join(sorted(executors))}; it includes instantiating and freeing "
-            f"the FMUs). In-process: `components.physics.monolithic.simulate_coupled` on the same cores, same "
+            f"the FMUs). In-process: `orchestration.inprocess.simulate_coupled` on the same cores, same "
             f"scheme, in the benchmark's process. Rounds alternate the order.\n",
-            table(["round", "whole command [s]", "stepping [s]", "in-process cores [s]", "whole / in-process",
+            table(["round", "whole command [s]", "stepping [s]", "in-process cores [s]", "whole / its stepping",
+                   "whole / in-process",
                    "stepping / in-process", "CPU time, whole / in-process [s]", "load after (1/5/15 min)"], rows),
             f"\nMedians: whole command **{m['whole']:.2f} s**, stepping **{m['stepping']:.2f} s**, in-process "
-            f"**{m['mono']:.2f} s**: whole / in-process **{m['ratio_whole']:.2f}×** (target ≤ {TARGET_WHOLE:.1f}×), "
+            f"**{m['mono']:.2f} s**: whole / its own stepping **{m['ratio_own']:.2f}×** (median of the rounds' "
+            f"ratios; target ≤ {TARGET_OWN:.2f}×), whole / in-process **{m['ratio_whole']:.2f}×** "
+            f"(target ≤ {TARGET_WHOLE:.1f}×), "
             f"stepping / in-process **{m['ratio_stepping']:.2f}×**. In CPU time (user + system, all threads; "
             f"less sensitive to the load than wall time): {m['whole_cpu']:.2f} s / {m['mono_cpu']:.2f} s = "
             f"{m['whole_cpu'] / m['mono_cpu']:.2f}×.\n",
@@ -286,14 +296,17 @@ def bench_kobe(tmp: Path, stop: float, rounds: int, profile: bool) -> tuple[dict
             ("FMUs: extract, load, instantiate, initialize, free", execute - step),
             ("stepping (the C loop and the FMUs)", step),
             ("timeseries.csv", t.get("csv", 0.0)),
-            ("plots (PNG)", t.get("plots", 0.0)),
+            ("plots: forking the plot processes (before the FMUs load)", t.get("plot_fork", 0.0)),
+            ("plots: drawn in-process (only where no plot process could be forked)", t.get("plots", 0.0)),
+            ("plots: waiting for the plot processes (they import matplotlib while the FMUs step and draw while "
+             "timeseries.csv is written)", t.get("plots_wait", 0.0)),
             ("summary and JSON", t.get("summary", 0.0) + t.get("json", 0.0)),
         ]
         accounted = sum(v for _, v in parts)
         parts.append(("the rest (run folder, manifest hashes, ...)", phase_wall - accounted))
         m["phases"] = {k: v for k, v in parts}
         m["phase_wall"] = phase_wall
-        m["plots"] = t.get("plots", 0.0)
+        m["plots"] = t.get("plots", 0.0) + t.get("plots_wait", 0.0)
         m["csv"] = t.get("csv", 0.0)
         text.append(f"Where the whole command's time goes (one instrumented run, {phase_wall:.2f} s, load {load()}):\n")
         text.append(table(["phase", "wall [s]", "share"],
@@ -305,7 +318,7 @@ def bench_kobe(tmp: Path, stop: float, rounds: int, profile: bool) -> tuple[dict
                 f"{writers['row_by_row']:.2f} s, compiled (`recorder.write_timeseries`, the same bytes) "
                 f"{writers['compiled']:.2f} s ({writers['row_by_row'] / writers['compiled']:.1f}× faster). "
                 f"The whole command uses {writers['session_uses']}.")
-    if profile and m["ratio_whole"] > TARGET_WHOLE:
+    if profile and (m["ratio_whole"] > TARGET_WHOLE or m["ratio_own"] > TARGET_OWN):
         m["profile"] = profile_whole_command(tmp)
     return m, "\n".join(text) + "\n"
 
@@ -385,9 +398,9 @@ def bare_library(tmp: Path) -> Any:
     if _BARE is None:
         source, target = tmp / "bare_calls.c", tmp / "bare_calls.so"
         source.write_text(BARE_LOOP_C)
-        done = subprocess.run([os.environ.get("CC", "cc"), "-shared", "-fPIC", "-O2", str(source), "-o", str(target)],
-                              capture_output=True, text=True, check=False)
-        if done.returncode != 0:
+        try:
+            compile_c(source, target, ("-shared", "-fPIC", "-O2"))
+        except (CompilerMissing, CompileFailed):
             return None
         _BARE = ctypes.PyDLL(str(target))  # holds the GIL, as the native executor's kernel does
         _BARE.bare_calls.argtypes = [c_void_p, c_int64, c_void_p, c_int64, c_double, c_double, c_double, c_int64]
@@ -546,7 +559,7 @@ def bench_libcosim(tmp: Path, stop: float, rounds: int) -> tuple[dict[str, Any],
     title = "## 4. Master overhead per step / libcosim's"
     try:
         from orchestration.interop.libcosim_export import libcosim_available, libcosim_scheme
-        from orchestration.interop.ssp import export_ssp
+        from orchestration.interop.ssp_package import export_ssp
     except ImportError as exc:
         return {}, f"{title}\n\nnot measured: {exc}\n"
     reason = libcosim_available()
@@ -707,10 +720,10 @@ def bench_identification(quick: bool) -> tuple[dict[str, Any], str]:
     else:
         note = ("`benchmarks/identification_bench.py` is not there (yet): FFOA per condition (the paper's "
                 "identification) against the structured identifier, measured here.\n\n")
-    from components.identification.config import load_config
     from components.identification.ffoa import FFOASettings
     from components.identification.identifiers import Acceptance, identify_hyperbolic_ffoa, identify_structured
-    from components.identification.pipeline import group, load_records
+    from orchestration.identification.ident_config import load_config
+    from orchestration.identification.ident_pipeline import group, load_records
 
     path = SCENARIOS / "identification.yaml"
     cfg = load_config(path)
@@ -811,6 +824,13 @@ def summary_table(kobe: dict, bare: dict, lc: dict, ident: dict) -> str:
         rows.append([f"Kobe ({kobe['stop']:g} s), whole command / in-process stepping of the same cores",
                      f"**{kobe['ratio_whole']:.2f}×** ({kobe['whole']:.2f} s / {kobe['mono']:.2f} s; in CPU time "
                      f"{kobe['whole_cpu'] / kobe['mono_cpu']:.2f}×)", f"≤ {TARGET_WHOLE:.1f}×: {verdict}"])
+        own = kobe["ratio_own"]
+        rows.append([f"Kobe ({kobe['stop']:g} s), whole command / its own stepping (`wall_time_s`)",
+                     f"**{own:.2f}×** (median of the rounds' ratios; medians {kobe['whole']:.2f} s / "
+                     f"{kobe['stepping']:.2f} s)",
+                     f"≤ {TARGET_OWN:.2f}×: " + ("**met**" if own <= TARGET_OWN else
+                                                 f"**missed** by {100 * (own / TARGET_OWN - 1):.0f} % "
+                                                 f"(about {kobe['whole'] - TARGET_OWN * kobe['stepping']:.2f} s)")])
         rows.append([f"Kobe ({kobe['stop']:g} s), stepping (native executor) / in-process stepping",
                      f"**{kobe['ratio_stepping']:.2f}×** ({kobe['stepping']:.2f} s / {kobe['mono']:.2f} s)", "–"])
         rows.append([f"Kobe ({kobe['stop']:g} s), stepping (Python executor) / in-process stepping",
@@ -836,10 +856,15 @@ def summary_table(kobe: dict, bare: dict, lc: dict, ident: dict) -> str:
 
 
 def where_the_time_goes(kobe: dict) -> str:
-    if not kobe or kobe["ratio_whole"] <= TARGET_WHOLE:
+    if not kobe or (kobe["ratio_whole"] <= TARGET_WHOLE and kobe["ratio_own"] <= TARGET_OWN):
         return ""
-    text = [f"## 2. The {TARGET_WHOLE:.1f}× target for the whole command: missed by "
-            f"{100 * (kobe['ratio_whole'] / TARGET_WHOLE - 1):.0f} %\n",
+    missed = [f"{TARGET_WHOLE:.1f}× the in-process stepping: "
+              + ("met" if kobe["ratio_whole"] <= TARGET_WHOLE else
+                 f"missed by {100 * (kobe['ratio_whole'] / TARGET_WHOLE - 1):.0f} %"),
+              f"{TARGET_OWN:.2f}× its own stepping: "
+              + ("met" if kobe["ratio_own"] <= TARGET_OWN else
+                 f"missed by {100 * (kobe['ratio_own'] / TARGET_OWN - 1):.0f} %")]
+    text = [f"## 2. The targets for the whole command: {'; '.join(missed)}\n",
             f"The whole command took {kobe['whole']:.2f} s, {kobe['whole'] - TARGET_WHOLE * kobe['mono']:.2f} s more "
             f"than {TARGET_WHOLE:.1f} × {kobe['mono']:.2f} s. The in-process number is stepping only; the command "
             f"also starts Python, checks and loads the FMUs, writes {round(kobe['stop'] * 1000) + 1} rows of CSV, "
@@ -850,7 +875,8 @@ def where_the_time_goes(kobe: dict) -> str:
     if "profile" in kobe:
         text.append("cProfile of the whole command (one run; the profiler inflates the Python-heavy parts, and "
                     "`native_stepper.run` holds the time spent in C: the kernel, the FMI calls and "
-                    "pythonfmu's C++ layer around them):\n")
+                    "pythonfmu's C++ layer around them; the figures are drawn by forked plot processes, which "
+                    "the profile does not see: `PlotProcess.wait` is the time the command waited for them):\n")
         text.append("```\n" + kobe["profile"] + "\n```\n")
     return "\n".join(text)
 

@@ -10,24 +10,63 @@ the project's FMUs when they are missing or stale) and raises
 :class:`~orchestration.master.errors.ScenarioError` listing every problem.
 :func:`run` executes a checked plan, writes its run folder like ``run.py`` and returns
 :class:`Results`: the time series as numpy arrays (SI units) and the summary.
+
+Unit messages (an FMU's warnings and errors) are not printed: they go to the standard
+:mod:`logging` logger ``"mre_cosim.units"`` as ``[unit] status: message`` (a unit's first 20
+warnings at WARNING, later ones at DEBUG, discard/error/fatal at ERROR; each record has
+``unit`` and ``fmi_status`` attributes), and all of them are kept in the run folder's
+``manifest.json`` (``unit_messages``). The caller decides what to show, e.g.
+
+>>> import logging
+>>> logging.getLogger("mre_cosim.units").addHandler(logging.StreamHandler())  # doctest: +SKIP
+
+or ``logging.basicConfig()`` for everything. ``progress=True`` draws a progress bar on stderr.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
+import os
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError, SimulationError
 from orchestration.master.execution import StopRequest
+from orchestration.master.resolve import SystemPlan
 from orchestration.master.session import run_plan
-from orchestration.master.system import SystemPlan
-from orchestration.project import plan_scenario
 
 __all__ = ["Results", "ScenarioError", "SimulationError", "SystemPlan", "load_scenario", "run"]
+
+
+def _path(value: Any, argument: str, function: str) -> Path:
+    """``value`` as a Path: TypeError naming the argument unless it is a str or os.PathLike."""
+    if isinstance(value, str | os.PathLike) and not isinstance(value, bytes):
+        text = os.fspath(value)
+        if isinstance(text, str) and text and "\x00" not in text:
+            return Path(text)
+        if isinstance(text, str):
+            raise ValueError(f"{function}(): {argument} must be a non-empty path without NUL characters, "
+                             f"got {text!r}")
+    raise TypeError(f"{function}(): {argument} must be a path (str or pathlib.Path), got {type(value).__name__}")
+
+
+def _strings(value: Any, argument: str, function: str, item: Callable[[Any, str, str], Any]) -> tuple[Any, ...]:
+    """An iterable of strings or paths as a tuple; a single string or path is one item, not its characters."""
+    if isinstance(value, str | os.PathLike):
+        value = (value,)
+    if isinstance(value, bytes | Mapping) or not isinstance(value, Iterable):
+        raise TypeError(f"{function}(): {argument} must be a list of strings, got {type(value).__name__}")
+    return tuple(item(v, f"{argument}[{k}]", function) for k, v in enumerate(value))
+
+
+def _override(value: Any, argument: str, function: str) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f"{function}(): {argument} must be a 'KEY=VALUE' string, got {type(value).__name__}")
+    return value
 
 
 def load_scenario(
@@ -38,9 +77,12 @@ def load_scenario(
     """Read and check a scenario (``.yaml``) or SSP package (``.ssp``); raises ScenarioError.
 
     ``overrides`` are ``KEY=VALUE`` strings as with ``run.py --set``; ``data_dirs`` are
-    searched first for ``!record`` files.
+    searched first for ``!record`` files. A single string is taken as one override or one
+    folder. An argument of the wrong type is a TypeError naming it.
     """
-    return plan_scenario(Path(path), tuple(overrides), tuple(Path(d) for d in data_dirs))
+    where = "load_scenario"
+    return plan_scenario(_path(path, "path", where), _strings(overrides, "overrides", where, _override),
+                         _strings(data_dirs, "data_dirs", where, _path))
 
 
 @dataclass(frozen=True)
@@ -72,7 +114,7 @@ class Results(Mapping[str, np.ndarray]):
 
 
 def run(
-    plan: SystemPlan,
+    plan: SystemPlan | Path | str,
     out: Path | str | None = None,
     plots: bool = False,
     progress: bool = False,
@@ -80,10 +122,25 @@ def run(
 ) -> Results:
     """Run a checked plan and write its run folder (``out``, or a new one under the scenario's results dir).
 
-    A unit failure does not raise: the partial results come back with ``complete`` False
-    and ``error`` saying which unit failed, when and why (as ``run.py`` reports it).
+    ``plan`` may also be a scenario file or SSP package path (loaded with :func:`load_scenario`).
+    A unit failure does not raise, nor does a unit that cannot be loaded (its FMU changed or
+    was damaged after it was checked): the partial results come back with ``complete`` False
+    and ``error`` saying which unit failed, when and why (as ``run.py`` reports it). Arguments of
+    the wrong type are a TypeError naming the argument, before anything is written.
     """
-    outcome = run_plan(plan, Path(out) if out is not None else None, plots, progress, stop)
+    where = "run"
+    if isinstance(plan, str | os.PathLike):
+        plan = load_scenario(plan)
+    if not isinstance(plan, SystemPlan):
+        raise TypeError(f"run(): plan must be a SystemPlan (from load_scenario) or a scenario path, "
+                        f"got {type(plan).__name__}")
+    folder = None if out is None else _path(out, "out", where)
+    for name, value in (("plots", plots), ("progress", progress)):
+        if not isinstance(value, bool):
+            raise TypeError(f"run(): {name} must be True or False, got {value!r}")
+    if stop is not None and not isinstance(stop, StopRequest):
+        raise TypeError(f"run(): stop must be a StopRequest or None, got {type(stop).__name__}")
+    outcome = run_plan(plan, folder, plots, progress, stop)
     rec = outcome.recorder
     columns = {name: rec.data[: rec.count, k].copy() for k, name in enumerate(rec.names)}
     result = outcome.result

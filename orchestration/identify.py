@@ -13,22 +13,18 @@ some did not converge; 2 bad configuration or input data, or an output folder it
 replace; 3 internal error (a bug; the traceback is in the log file named); 130 interrupted
 (nothing written).
 
-Conditions can be identified in parallel (``--workers N``) on the studies' engine
-(:mod:`orchestration.studies.engine`), behind :func:`process_map`, a map-like function: the
-identification itself (``components/identification``) only sees a map. Without
-``--workers`` that happens only when the FFOA work is large enough to pay for starting the
-engine (``pipeline.PARALLEL_MIN_S``).
+Conditions can be identified in parallel (``--workers N``) on the batch pool
+(:mod:`orchestration.batch.pool`), behind :func:`process_map`, a map-like function: the
+identification (the application :mod:`orchestration.identification` over the fitting library
+``components/identification``) only sees a map. Without ``--workers`` that happens only when
+the FFOA work is large enough to pay for starting the pool (``ident_pipeline.PARALLEL_MIN_S``).
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import signal
 import sys
-from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 if __name__ == "__main__":
@@ -38,39 +34,45 @@ if __name__ == "__main__":
     for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_name, "1")
 
-from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool
+from mre_common.guard import quiet_interrupts  # standard library only: installed before any other import
 
 if __name__ == "__main__":
     quiet_interrupts()  # Ctrl-C or SIGTERM during the imports below: one line, exit 130, no traceback
 
-from components.identification.config import ConfigError, load_config
+import argparse
+import signal
+from collections.abc import Callable, Sequence
+from typing import Any
+
 from components.identification.generalized import GeneralizationError
-from components.identification.pipeline import PARALLEL_MIN_S, run
-from components.identification.report import summary_text
 from components.identification.testdata import TestDataError
-from orchestration.studies.engine import default_workers
+from orchestration.batch import default_workers
+from orchestration.cli import EPILOG_COMMON, run_tool
+from orchestration.identification.ident_config import ConfigError, load_config
+from orchestration.identification.ident_pipeline import PARALLEL_MIN_S, run
+from orchestration.identification.ident_report import summary_text
 
 
 def process_map(func: Callable[[Any], Any], items: Sequence[Any], workers: int) -> list[Any]:
-    """``list(map(func, items))`` spread over up to ``workers`` processes of the studies' engine.
+    """``list(map(func, items))`` spread over up to ``workers`` processes of the batch pool.
 
     ``func`` must be a module-level function; items and results must pickle. Each item is
-    one job of :func:`orchestration.studies.engine.map_values` (a local Dask cluster, one
+    one job of :func:`orchestration.batch.pool.map_values` (a local Dask cluster, one
     single-threaded worker process per CPU; the scheduler balances the jobs); results come
     back in the order of the items, and a failed job raises RuntimeError with its traceback.
-    With one worker or one item, or without the engine, runs in this process.
+    With one worker or one item, or without the pool, runs in this process.
     """
     items = list(items)
     n = min(workers, len(items))
     if n > 1:
         try:
-            from orchestration.studies.engine import EngineUnavailable, map_values
-        except ImportError as exc:  # the engine's packages are missing
-            print(f"note: identifying in one process (no parallel engine: {exc})", file=sys.stderr)
+            from orchestration.batch import BatchUnavailable, map_values
+        except ImportError as exc:  # the batch pool's packages are missing
+            print(f"note: identifying in one process (no parallel pool: {exc})", file=sys.stderr)
         else:
             try:
                 return map_values(func, items, workers=n)
-            except EngineUnavailable as exc:
+            except BatchUnavailable as exc:
                 print(f"note: identifying in one process ({exc})", file=sys.stderr)
     return [func(item) for item in items]
 
@@ -112,7 +114,7 @@ def _identify(argv: list[str] | None) -> int:
     parser.add_argument("--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress bar")
     parser.add_argument("--strict", action="store_true", help="exit 1 if any identification did not converge")
     parser.add_argument("--workers", type=int, default=None, metavar="N",
-                        help="identify the conditions in N processes of the studies' engine (1 = in this "
+                        help="identify the conditions in N processes of the batch pool (1 = in this "
                              "process; default: one per CPU, but only when the FFOA work is large enough to pay "
                              "for starting them, see docs/identification.md)")
     args = parser.parse_args(argv)

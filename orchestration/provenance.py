@@ -1,7 +1,7 @@
 """What made a result: this package's version and the source revision it ran from.
 
 Written into every run's ``manifest.json`` (through the resolve hooks of
-:mod:`orchestration.project`) and into a study's ``study.json``.
+:mod:`orchestration.engine_hooks`) and into a study's ``study.json``.
 """
 
 from __future__ import annotations

@@ -9,19 +9,22 @@ interruption (partial results written and marked incomplete), 2 scenario error
 
 from __future__ import annotations
 
-import argparse
-import json
-import signal
 import sys
 from pathlib import Path
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, quiet_interrupts, run_tool
+from mre_common.guard import quiet_interrupts  # standard library only: installed before any other import
 
 if __name__ == "__main__":
     quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+import argparse
+import json
+import signal
+
+from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, run_tool
 
 EPILOG = ("exit codes: 0 success; 1 simulation failure or interruption (partial results written, marked "
           "incomplete); 2 scenario error (nothing written); " + EPILOG_COMMON + ". Relative paths are relative "
@@ -57,9 +60,9 @@ def unit_errors(folder: Path, limit: int = UNIT_ERRORS_SHOWN) -> list[str]:
 
 def _run(argv: list[str] | None) -> int:
     args = parse_args(argv)
+    from orchestration.engine_hooks import plan_scenario
     from orchestration.master.execution import StopRequest
     from orchestration.master.session import run_plan
-    from orchestration.project import plan_scenario
 
     # Ctrl-C or SIGTERM while the scenario is checked (and FMUs built): nothing written, exit 130
     plan = plan_scenario(args.scenario, tuple(args.overrides), tuple(args.data_dirs))
@@ -86,8 +89,20 @@ def _run(argv: list[str] | None) -> int:
     errors = [m for m in unit_errors(outcome.folder) if m.split(": ", 1)[-1] not in said]
     if errors and outcome.result.status == "failed":
         print("the units said:", *(f"  {m}" for m in errors), sep="\n", file=sys.stderr)
-    print(f"partial results (marked incomplete): {outcome.folder}", file=sys.stderr)
+    print(f"{results_note(outcome.folder)}: {outcome.folder}", file=sys.stderr)
     return EXIT_FAILED
+
+
+def results_note(folder: Path) -> str:
+    """How an incomplete run's folder is marked: what its summary.json (or manifest.json) says, read back."""
+    for name in ("summary.json", "manifest.json"):
+        try:
+            if json.loads((folder / name).read_text()).get("complete") is False:
+                return "partial results (marked incomplete)"
+        except (OSError, ValueError, AttributeError):
+            continue
+    return ("partial results, NOT marked incomplete (neither summary.json nor manifest.json could be written; "
+            "treat the folder as incomplete)")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -11,17 +11,20 @@ file named), 130 interrupted (nothing written).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, quiet_interrupts, run_tool
+from mre_common.guard import quiet_interrupts  # standard library only: installed before any other import
 
 if __name__ == "__main__":
     quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+import argparse
+
+from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, run_tool
 
 EXIT_CODES = ("exit codes: 0 success; 2 scenario or package error, or the destination exists or cannot be written "
               "(nothing written); " + EPILOG_COMMON)
@@ -45,8 +48,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def _export(args: argparse.Namespace) -> None:
-    from orchestration.interop.ssp import export_ssp
-    from orchestration.project import plan_scenario
+    from orchestration.engine_hooks import plan_scenario
+    from orchestration.interop.ssp_package import export_ssp
 
     dest: Path = args.dest
     if dest.is_dir():
@@ -64,12 +67,13 @@ def _export(args: argparse.Namespace) -> None:
 
 
 def _check(args: argparse.Namespace) -> None:
-    from orchestration.interop.ssp import load_ssp
-    from orchestration.master.system import resolve
+    from orchestration.building_report import REPORT
+    from orchestration.interop.ssp_package import load_ssp
+    from orchestration.master.resolve import ResolveHooks, resolve
 
     loaded = load_ssp(args.package)
     try:
-        plan = resolve(loaded)
+        plan = resolve(loaded, hooks=ResolveHooks(report=REPORT))  # the FMUs as packaged: nothing is built
         sc = loaded.scenario
         print(f"{args.package}: {len(plan.descriptions)} units, {len(plan.links)} connections, "
               f"{sc.simulation.n_steps} steps of {sc.simulation.step} s ({sc.simulation.algorithm})")

@@ -1,7 +1,7 @@
 """Run a case study: ``python orchestration/study.py scenarios/case_study.yaml``.
 
 Records x strategies, each a co-simulation through the master; see
-:mod:`orchestration.studies.case_study` for the study folder it writes. Exit codes: 0
+:mod:`orchestration.case_study.case_run` for the study folder it writes. Exit codes: 0
 every job succeeded; 1 some jobs failed or the study was interrupted (the report lists
 them); 2 configuration error (nothing written); 3 internal error (a bug; the traceback is
 in the log file named); 130 interrupted before the study started (nothing written).
@@ -15,23 +15,25 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool, with_epilog
+from mre_common.guard import quiet_interrupts  # standard library only: installed before any other import
 
 if __name__ == "__main__":
     quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+from orchestration.cli import EPILOG_COMMON, run_tool, with_epilog
 
 EPILOG = ("exit codes: 0 every job succeeded; 1 some jobs failed or the study was interrupted (the report lists "
           "them); 2 configuration error (nothing written); " + EPILOG_COMMON)
 
 
 def _study(argv: list[str] | None) -> int:
-    from orchestration.studies.case_study import main as study_main
+    from orchestration.case_study.case_run import main as study_main
 
     return with_epilog(study_main, argv, EPILOG)
 
 
 def _errors() -> tuple[type[BaseException], ...]:
-    from orchestration.studies.tuning import NotMonolithic
+    from orchestration.case_study.tuning import NotMonolithic
 
     return (NotMonolithic,)
 

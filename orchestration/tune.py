@@ -1,7 +1,7 @@
 """Tune the SOSM gains of a study: ``python orchestration/tune.py scenarios/case_study.yaml --force``.
 
 Writes the study's gains file (``scenarios/sosm_gains.yaml``); see
-:mod:`orchestration.studies.tuning`. Exit codes: 0 written; 2 configuration error or the
+:mod:`orchestration.case_study.tuning`. Exit codes: 0 written; 2 configuration error or the
 gains file exists without ``--force`` (nothing written); 3 internal error (a bug; the
 traceback is in the log file named); 130 interrupted (nothing written).
 """
@@ -14,23 +14,25 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from orchestration.cli import EPILOG_COMMON, quiet_interrupts, run_tool, with_epilog
+from mre_common.guard import quiet_interrupts  # standard library only: installed before any other import
 
 if __name__ == "__main__":
     quiet_interrupts()  # Ctrl-C or SIGTERM while starting: one line, exit 130, no traceback
+
+from orchestration.cli import EPILOG_COMMON, run_tool, with_epilog
 
 EPILOG = ("exit codes: 0 gains file written; 2 configuration error, or the gains file exists without --force "
           "(nothing written); " + EPILOG_COMMON)
 
 
 def _tune(argv: list[str] | None) -> int:
-    from orchestration.studies.tuning import main as tune_main
+    from orchestration.case_study.tuning import main as tune_main
 
     return with_epilog(tune_main, argv, EPILOG)
 
 
 def _errors() -> tuple[type[BaseException], ...]:
-    from orchestration.studies.tuning import NotMonolithic
+    from orchestration.case_study.tuning import NotMonolithic
 
     return NotMonolithic, OSError  # the gains file is written atomically: a failed write leaves nothing
 

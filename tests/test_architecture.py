@@ -1,15 +1,18 @@
 """The layout's import rules, read from the source (every import statement, also inside functions).
 
-* ``orchestration.master`` (the engine) imports only itself: no ``components``, no application.
-* ``orchestration.interop`` imports the engine and itself.
+* ``mre_common`` (atomic writes, C compile-and-cache, folder claims, the CLI guard) imports nothing of ours.
+* ``orchestration.master`` (the engine) imports only itself and ``mre_common``: no ``components``, no application.
+* ``orchestration.interop`` imports the engine and itself; ``orchestration.batch`` (the Dask layer) the engine
+  and itself, no study; ``orchestration.inprocess`` the engine and the physics cores.
 * ``components`` never imports ``orchestration``; ``components.physics`` imports only itself.
 * A pythonfmu shell imports, by bare name, only physics cores that travel in its FMU.
-* No import cycle anywhere in ``orchestration`` and ``components``.
+* No import cycle anywhere; no engine module mentions the building; no two modules share a file name.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -17,13 +20,20 @@ import pytest
 
 from .conftest import PROJECT
 
-PACKAGES = ("orchestration", "components")
-# module prefix -> prefixes of project modules it may import
+PACKAGES = ("orchestration", "components", "mre_common")
+COMMON = "mre_common"
+ENGINE = "orchestration.master"
+# module prefix -> prefixes of project modules it may import (the most specific prefix applies)
 RULES = {
-    "orchestration.master": ("orchestration.master",),
-    "orchestration.interop": ("orchestration.master", "orchestration.interop"),
+    COMMON: (COMMON,),
+    ENGINE: (ENGINE, COMMON),
+    "orchestration.interop": (ENGINE, "orchestration.interop", COMMON),
+    "orchestration.batch": (ENGINE, "orchestration.batch", COMMON),
+    "orchestration.inprocess": (ENGINE, "orchestration.inprocess", "components.physics", COMMON),
+    "orchestration.identification": ("orchestration.identification", "orchestration.batch", ENGINE,
+                                     "components.identification", "components.physics", COMMON),
     "components.physics": ("components.physics",),
-    "components": ("components",),
+    "components": ("components", COMMON),
 }
 
 
@@ -65,7 +75,7 @@ def violations(sources: dict[str, str]) -> list[str]:
     """Every import that breaks RULES."""
     out = []
     for name, targets in sorted(graph(sources).items()):
-        rule = next((p for p in RULES if name == p or name.startswith(p + ".")), None)
+        rule = max((p for p in RULES if name == p or name.startswith(p + ".")), key=len, default=None)
         if rule is None:
             continue
         allowed = RULES[rule]
@@ -121,12 +131,13 @@ def test_no_import_cycles():
 
 def test_the_rules_catch_an_engine_module_that_imports_components():
     sources = project_sources()
-    sources["orchestration.master.execution"] += "\nfrom components.physics.monolithic import simulate_coupled\n"
-    sources["orchestration.master.recorder"] += "\ndef f():\n    from orchestration.studies import report\n"
+    sources["orchestration.master.execution"] += "\nfrom components.physics.mre_isolator_core import IsolatorLaw\n"
+    sources["orchestration.master.recorder"] += "\ndef f():\n    from orchestration.case_study.case_metrics import x\n"
+    sources["orchestration.batch.pool"] += "\nimport orchestration.ida_study.fragility\n"
     assert violations(sources) == [
-        "orchestration.master.execution imports components.physics.monolithic",
-        "orchestration.master.recorder imports orchestration.studies",
-        "orchestration.master.recorder imports orchestration.studies.report",
+        "orchestration.batch.pool imports orchestration.ida_study.fragility",
+        "orchestration.master.execution imports components.physics.mre_isolator_core",
+        "orchestration.master.recorder imports orchestration.case_study.case_metrics",
     ]
 
 
@@ -151,3 +162,27 @@ def test_shells_import_only_their_own_physics_cores(shell):
             mod = node.module if isinstance(node, ast.ImportFrom) else node.names[0].name
             assert (mod or "").split(".")[0] not in PACKAGES, f"{shell} imports {mod}: shells travel without packages"
     assert bare <= declared, f"{shell} imports {bare - declared} without listing it in FMU_CORE_MODULES"
+
+
+BUILDING_WORDS = re.compile(r"isolat|drift|storey|\bfloors?\b(?!\s*\()|hysteres|sosm|earthquake", re.IGNORECASE)
+"""Words of our application (C's floor() is arithmetic, not a floor of a building)."""
+
+
+def test_the_engine_knows_no_building():
+    """The engine knows FMUs and variables: its code and comments name no part of our application."""
+    found = [f"{p.relative_to(PROJECT)}:{i}: {line.strip()}"
+             for p in sorted((PROJECT / "orchestration" / "master").rglob("*.[pc]*")) if p.suffix in (".py", ".c")
+             for i, line in enumerate(p.read_text().splitlines(), 1)
+             if BUILDING_WORDS.search(line)]
+    assert found == []
+
+
+def test_no_two_modules_share_a_file_name():
+    """A name says what a file holds: ``report.py`` in three packages says nothing."""
+    generic = {"__init__.py", "__main__.py", "conftest.py"}
+    seen: dict[str, list[str]] = {}
+    for pkg in PACKAGES:
+        for p in (PROJECT / pkg).rglob("*.py"):
+            if p.name not in generic:
+                seen.setdefault(p.name, []).append(str(p.relative_to(PROJECT)))
+    assert {n: ps for n, ps in seen.items() if len(ps) > 1} == {}

@@ -8,12 +8,13 @@ import sys
 
 import pytest
 
-from components.physics.monolithic import SystemSetup, simulate_coupled
+from components.physics.monolithic import SystemSetup
 from components.physics.shear_building_core import BuildingParams
-from orchestration.project import plan_scenario
-from orchestration.studies.base_sensitivity import conclusions
-from orchestration.studies.config import load_study
-from orchestration.studies.tuning import peak_values, run_overrides, system_setup
+from orchestration.case_study.base_sensitivity import conclusions
+from orchestration.case_study.case_config import load_study
+from orchestration.case_study.tuning import peak_values, run_overrides, system_setup
+from orchestration.engine_hooks import plan_scenario
+from orchestration.inprocess import simulate_coupled
 
 from .conftest import PROJECT
 
@@ -43,6 +44,7 @@ def test_conclusions_hold_and_fail_where_they_must():
     assert conclusions(rows, ["x", "y"], 2.5)["bad"]["fig15_current"]["holds"] is False
 
 
+@pytest.mark.slow
 def test_a_tiny_sensitivity_run_through_the_cli(tmp_path):
     out = tmp_path / "sens"
     proc = subprocess.run([sys.executable, str(PROJECT / "orchestration" / "study.py"), str(STUDY),

@@ -153,6 +153,7 @@ def test_c_kernel_equals_the_numpy_path(build):
             assert np.max(err) < 1e-12, np.max(err)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("use", ["numpy", "c", "c-simd"])
 def test_population_evaluation_equals_per_fly_evaluation(use):
     """A fly's state does not depend on the other flies beyond the shared sub-step count: alone,
@@ -200,6 +201,7 @@ def _fmu(**params):
     return m
 
 
+@pytest.mark.slow
 def test_fmu_shell_follows_the_core_model():
     m = _fmu(n_isolators=2, F0=1.5)
     h, amp, w, cur = 1e-3, 6e-3, 2 * np.pi * 2.0, 1.5

@@ -25,7 +25,13 @@ import components.build.c_isolator as cbuild
 from components.build.c_isolator import C_FMU_NAME, build_c_isolator, ensure_c_isolator, is_stale
 from components.build.model_description import BuildError
 from components.build.pythonfmu_units import build, discover
-from components.physics.mre_isolator_core import TABLE2, GeneralizedCoefficients, isolator_force
+from components.physics.mre_isolator_core import (
+    BEYOND_RANGE,
+    TABLE2,
+    GeneralizedCoefficients,
+    bounded_force_law,
+    isolator_force,
+)
 
 from .fmu_driver import Driven
 
@@ -148,7 +154,8 @@ def _interface(path: Path) -> dict:
             (v.name, v.valueReference, v.type, v.causality, v.variability, v.unit, v.description)
             for v in md.modelVariables
         ],
-        "starts": {v.name: float(v.start) for v in md.modelVariables if v.start is not None},
+        "starts": {v.name: float(v.start) for v in md.modelVariables if v.start is not None and v.type != "String"},
+        "string_starts": {v.name: v.start for v in md.modelVariables if v.type == "String"},
         "outputs": [(o.variable.name, [d.name for d in o.dependencies]) for o in md.outputs],
         "units": sorted((u.name, repr(u.baseUnit)) for u in md.unitDefinitions),
     }
@@ -169,6 +176,60 @@ def test_runtime_defaults_are_table2(isolator_fmus, implementation):
         names = list(TABLE2.as_dict())
         assert dict(zip(names, iso.get(*names), strict=True)) == TABLE2.as_dict()
         assert iso.get("i_max", "x_identified", "x_limit", "F0") == [3.0, 0.008, 0.015, 0.0]
+    finally:
+        iso.close()
+
+
+@pytest.mark.parametrize("beyond_range", BEYOND_RANGE)
+def test_force_beyond_the_range_equals_bounded_force_law(isolator, beyond_range):
+    """Both units against mre_isolator_core.bounded_force_law on random inputs, inside and beyond +-x_identified
+    and past the stop at +-x_limit (non-default parameters, currents outside [0, i_max] clipped first).
+
+    Bit for bit, not to a tolerance: the C unit does the same operations in the same order, compiled
+    with -ffp-contract=off (no fused multiply-adds) and calling the same libm sinh/cosh as Python's math
+    module, so every rounding is the same. (A reordered but equivalent formula would differ by a few ulps
+    of the largest term; near the cancellation F ~ 0 that is no relative bound at all.)"""
+    params = {"beyond_range": beyond_range, "x_identified": 0.007, "x_limit": 0.012, "k_stop": 2.0e6,
+              "c_stop": 9.0e3, "n_isolators": 3, "F0": 1.5, "i_max": 2.5}
+    law = bounded_force_law(TABLE2, 1.5, 3, beyond_range, 0.007, 0.012, 2.0e6, 9.0e3)
+    iso = _driven(isolator, params)
+    rng = np.random.default_rng(24)
+    beyond = stopped = 0
+    try:
+        assert iso.fmu.getString([iso.vars["beyond_range"].valueReference]) == [beyond_range.encode()]
+        for k in range(400):
+            x, v, i = rng.uniform(-0.025, 0.025), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 3.5)
+            iso.set(x=x, v=v, i=i)
+            assert iso.get("F")[0] == law(x, v, min(max(i, 0.0), 2.5))
+            iso.step(k * 1e-3, 1e-3)
+            beyond += abs(x) > 0.007
+            stopped += abs(x) > 0.012
+        assert beyond > 100 and stopped > 50  # the inputs exercised every branch
+        # at the boundary the policies agree with Eq. 17 (C0), and they differ from it beyond
+        iso.set(x=0.007, v=0.1, i=1.0)
+        assert iso.get("F")[0] == isolator_force(0.007, 0.1, 1.0, TABLE2, 1.5, 3)
+        iso.set(x=0.02, v=0.0, i=0.0)
+        assert (iso.get("F")[0] == isolator_force(0.02, 0.0, 0.0, TABLE2, 1.5, 3)) == (beyond_range == "extrapolate")
+    finally:
+        iso.close()
+
+
+@pytest.mark.parametrize(("parameters", "text"), [
+    ({"beyond_range": "clamp"}, "beyond_range = 'clamp' is not one of"),
+    ({"beyond_range": "stop", "x_limit": 0.005}, "x_limit = "),
+    ({"beyond_range": "stop", "k_stop": -1.0}, "k_stop = "),
+    ({"beyond_range": "stop", "c_stop": -1.0}, "c_stop = "),
+    ({"beyond_range": "tangent", "x_identified": 0.0}, "x_identified = "),
+])
+def test_out_of_domain_parameters_fail_the_first_step(isolator, capfd, parameters, text):
+    iso = _driven(isolator, parameters)
+    try:
+        logged = capfd.readouterr().out
+        assert "invalid isolator parameters: " in logged and text in logged and "[ERROR]" in logged
+        iso.set(x=0.001, v=0.0, i=1.0)
+        assert math.isnan(iso.get("F")[0])
+        with pytest.raises(FMICallException):
+            iso.step(0.0, 1e-3)
     finally:
         iso.close()
 
@@ -242,8 +303,9 @@ def test_c_builder_staleness_and_compiler_errors(tmp_path, monkeypatch):
     assert not (tmp_path / "other" / C_FMU_NAME).exists()
 
 
+@pytest.mark.slow
 def test_elcentro_with_the_c_isolator_equals_the_python_isolator(elcentro, tmp_path):
-    from orchestration.project import run_scenario
+    from orchestration.engine_hooks import run_scenario
 
     ensure_c_isolator()  # into fmus/, where the scenario points (the master builds only pythonfmu units)
     overrides = ("simulation.stop_time=3",)

@@ -1,9 +1,10 @@
 """Coupling accuracy: the default co-simulation against a monolithic Radau reference of the same physics.
 
 Windows cover each record's strong motion; every peak of the full record falls inside them
-(El Centro 4.6 s, Hachinohe 4.2 s, Northridge 4.3 s, Kobe 11.8 s; README, Coupling accuracy).
-The co-simulation is evaluated with components.physics.monolithic.simulate_coupled, which equals the
-FMU co-simulation to 1e-9 (test_end_to_end); one case runs the FMUs directly.
+(El Centro 4.6 s, Hachinohe 4.2 s, Northridge 4.3 s, Kobe 11.8 s; docs/master.md, Coupling accuracy).
+The co-simulation is evaluated in-process with orchestration.inprocess.simulate_coupled (the engine's
+coupling algorithm over the physics cores), which equals the FMU co-simulation (test_inprocess,
+test_end_to_end); one case runs the FMUs directly.
 """
 
 from __future__ import annotations
@@ -14,10 +15,13 @@ import numpy as np
 import pytest
 
 from components.physics.ground_motion_core import GroundMotion, read_record
-from components.physics.monolithic import SystemSetup, Trajectory, simulate_coupled, simulate_radau
-from orchestration.project import run_scenario
+from components.physics.monolithic import SystemSetup, Trajectory, simulate_radau
+from orchestration.engine_hooks import run_scenario
+from orchestration.inprocess import simulate_coupled
 
 from .conftest import PROJECT, shipped_record
+
+pytestmark = pytest.mark.slow  # Radau references of 6-13 s windows: seconds to minutes each
 
 H = 1e-3
 WINDOWS = {  # record: simulated window [s]

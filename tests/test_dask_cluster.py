@@ -19,6 +19,8 @@ import pytest
 from .conftest import PROJECT
 from .test_ida import ENV, ida_cli, small_study
 
+pytestmark = pytest.mark.slow  # a scheduler and two workers started as processes
+
 
 def _start(args: list[str], cwd: Path, log: Path) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "dask", *args], cwd=cwd, env={**ENV, "PYTHONPATH": str(PROJECT)},
@@ -74,6 +76,6 @@ def test_a_study_on_a_loopback_cluster_equals_the_local_default(tmp_path, loopba
     rows = comparable(remote)
     assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
     assert rows == comparable(local)
-    engine = json.loads((remote / "ida.json").read_text())["engine"]
+    engine = json.loads((remote / "ida.json").read_text())["batch"]
     assert engine["scheduler"] == loopback_cluster and engine["workers"] == 2
     assert (remote / "report.html").is_file()

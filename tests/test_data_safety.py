@@ -23,9 +23,9 @@ import pytest
 import yaml
 
 from components.identification.generalized import GeneralizedFit, physical_problems
-from components.identification.pipeline import MARKER
 from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS
 from orchestration import identify
+from orchestration.identification.ident_pipeline import MARKER
 from orchestration.master import session
 from orchestration.master.runfolder import RUN_MARKER, RunFolderExists, RunFolderUnusable, new_run_folder
 
@@ -91,7 +91,7 @@ def test_overwrite_refuses_the_working_directory_and_its_ancestors(tmp_path, id_
 
 def test_root_and_home_are_protected(tmp_path, monkeypatch):
     """Checked on the predicate only: a regression must not be able to reach rmtree('/')."""
-    from components.identification.pipeline import _protected
+    from orchestration.identification.ident_pipeline import _protected
 
     monkeypatch.setenv("HOME", str(tmp_path))
     monkeypatch.chdir(tmp_path)
@@ -150,6 +150,7 @@ def test_two_threads_claiming_the_same_folder_exactly_one_wins(tmp_path):
     assert [p.name for p in out.iterdir()] == [RUN_MARKER]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("existing", [False, True], ids=["missing", "empty"])
 def test_two_cli_runs_with_the_same_out_one_succeeds_one_consistent_run(tmp_path, existing):
     out = tmp_path / "same"
@@ -181,6 +182,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([*RUN, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("out", ["file.txt/sub", "/proc/mre-cosim-test/run"])
 def test_unusable_out_is_a_clean_exit_2_naming_the_path(tmp_path, out):
     (tmp_path / "file.txt").write_text("not a folder")
@@ -192,7 +194,7 @@ def test_unusable_out_is_a_clean_exit_2_naming_the_path(tmp_path, out):
 
 
 def test_unusable_out_is_reported_before_simulating(tmp_path, monkeypatch):
-    from orchestration.project import run_scenario
+    from orchestration.engine_hooks import run_scenario
 
     (tmp_path / "file.txt").write_text("x")
 
@@ -227,7 +229,7 @@ def test_timeseries_write_failure_is_not_complete_and_exits_1(tmp_path, monkeypa
 
 
 def test_summary_write_failure_leaves_no_complete_summary(tmp_path, monkeypatch):
-    from orchestration.project import run_scenario
+    from orchestration.engine_hooks import run_scenario
 
     real = session.write_json
 

@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from orchestration.engine_hooks import plan_scenario, resolve_scenario
 from orchestration.interop.libcosim_export import libcosim_scheme
-from orchestration.interop.ssp import export_ssp, load_ssp
+from orchestration.interop.ssp_package import export_ssp, load_ssp
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario, resolve_scenario
 
 from .conftest import PROJECT, shipped_record
 
@@ -63,7 +63,8 @@ def _ecos_reason() -> str | None:
 _REASON = _ecos_reason()
 if _REASON is not None:
     print(f"test_ecos skipped: {_REASON}")
-pytestmark = pytest.mark.skipif(_REASON is not None, reason=_REASON or "")
+# slow: the El Centro system in ecos and in our master
+pytestmark = [pytest.mark.skipif(_REASON is not None, reason=_REASON or ""), pytest.mark.slow]
 
 
 def run_ecos(package: Path, workdir: Path, names: list[str], step: float, n_steps: int,

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from components.physics.ground_motion_core import GroundMotion, read_record
-from components.physics.monolithic import SystemSetup, simulate_coupled, simulate_radau
-from orchestration.project import run_scenario
+from components.physics.monolithic import SystemSetup, simulate_radau
+from orchestration.engine_hooks import run_scenario
+from orchestration.inprocess import simulate_coupled
 
 from .conftest import PROJECT
 
@@ -25,6 +26,7 @@ def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run([*RUN, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SCENARIOS)
 @pytest.mark.parametrize("variant", [(), ("--set", "controller.mode=passive")], ids=["sosm", "passive"])
 def test_shipped_scenarios_run_from_the_cli(tmp_path, name, variant):
@@ -90,6 +92,7 @@ COMPARED = {"building.x_0": ("x", 0), "building.x_3": ("x", 3), "building.v_0": 
                                                ("gauss-seidel", "hold"), ("jacobi", "hold")])
 @pytest.mark.parametrize(("mode", "overrides"), [("sosm", ()), ("passive", ("controller.mode=passive",)),
                                                   ("passive3", ("controller.mode=passive", "controller.i_passive=3"))])
+@pytest.mark.slow
 def test_fmu_cosimulation_equals_the_in_process_physics(tmp_path, elcentro, scheme, inputs, mode, overrides):
     """Same cores, same step, same order and input estimate, no FMUs: agreement to 1e-9 proves the wrapping."""
     T = 4.0
@@ -110,9 +113,10 @@ def test_fmu_cosimulation_equals_the_in_process_physics(tmp_path, elcentro, sche
         assert 0 < np.max(ref.i) <= 3.0
 
 
+@pytest.mark.slow
 def test_explicit_coupling_error_is_first_order(elcentro):
     """Holding the isolator force over each step (inputs: hold) lags it by half a step: a first-order
-    coupling error, large at 1 ms (README, Coupling error) and about halved when the step is halved."""
+    coupling error, large at 1 ms (docs/master.md, Coupling accuracy) and about halved when the step is halved."""
     T = 6.0
     setup = setup_for(elcentro, "passive", 0.0)
     ref = simulate_radau(setup, T, np.arange(0, round(T / 2.5e-4) + 1) * 2.5e-4)

@@ -1,9 +1,11 @@
-"""The README's Jacobi example: the extrapolated current stays within the bound the README states."""
+"""The Jacobi example of docs/running.md: the extrapolated current stays within the bound the doc states."""
 
 from __future__ import annotations
 
 import json
 import re
+
+import pytest
 
 from components.physics.sosm_controller_core import SosmGains
 from orchestration.api import load_scenario, run
@@ -11,6 +13,7 @@ from orchestration.api import load_scenario, run
 from .conftest import PROJECT
 
 
+@pytest.mark.slow
 def test_jacobi_extrapolation_overshoots_the_current_limit_by_at_most_1_25_rho_h(tmp_path):
     # Under Jacobi + step-mean the isolator's current is the mid-step quadratic extrapolation
     # (15 i0 - 10 i1 + 3 i2) / 8 of the controller's last values. The controller changes i by at

@@ -5,13 +5,14 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from orchestration.api import load_scenario, run
-from orchestration.project import plan_scenario
-from orchestration.studies.claims import PINNED_SHARE
-from orchestration.studies.config import load_study
-from orchestration.studies.strategies import strategy_overrides
-from orchestration.studies.tuning import _simulate, gain_set_overrides, read_gains, read_table, system_setup
+from orchestration.case_study.case_config import load_study
+from orchestration.case_study.claims import PINNED_SHARE
+from orchestration.case_study.strategies import strategy_overrides
+from orchestration.case_study.tuning import _simulate, gain_set_overrides, read_gains, read_table, system_setup
+from orchestration.engine_hooks import plan_scenario
 
 from .conftest import PROJECT
 
@@ -41,6 +42,7 @@ def test_the_gain_file_fits_the_study_and_records_its_tuning():
     assert best["J"] == doc["result"]["objective"]
 
 
+@pytest.mark.slow
 def test_the_current_varies_within_the_papers_range_on_every_record():
     """In-process, each whole record (the quiet tails count: Kobe's 150 s are mostly tail; about 7 s in all):
     within [0, 2.5] A, at neither end for more than the claim's share, spread over the range."""
@@ -63,6 +65,7 @@ def test_the_current_varies_within_the_papers_range_on_every_record():
         assert len(np.unique(np.round(i, 3))) > 100, r
 
 
+@pytest.mark.slow
 def test_the_strategy_runs_the_fmu_with_its_own_limit(tmp_path):
     """Through the master: the sosm-fig15 overrides make the controller FMU stop at 2.5 A (the isolator keeps 3 A)."""
     study = load_study(STUDY)

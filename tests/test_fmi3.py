@@ -1,4 +1,4 @@
-"""FMI 3.0 co-simulation units in the master (orchestration.master.fmu3_unit).
+"""FMI 3.0 co-simulation units in the master (orchestration.master.fmi3_cosim_unit).
 
 The unit under test is ``ConstantCurrent3``, a plain-C FMI 3.0 FMU built here from
 ``tests/fmi3/constant_current3.c`` (tests/fmi3_build.py): i = count * current + offset
@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
+from orchestration.engine_hooks import plan_scenario, run_scenario
 from orchestration.master.errors import ScenarioError, SimulationError, UnitCallError
+from orchestration.master.fmi2_cosim_unit import FmuUnit
+from orchestration.master.fmi3_cosim_unit import Fmu3Unit
 from orchestration.master.fmi_status import FMI3_STATUS, LogRecord, check_status
-from orchestration.master.fmu3_unit import Fmu3Unit
-from orchestration.master.fmu_file import FmuFormatError, read_description
-from orchestration.master.fmu_unit import FmuUnit
+from orchestration.master.fmu_description import FmuFormatError, read_description
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario, run_scenario
 
 from .conftest import PROJECT
 from .fmi3_build import (
@@ -257,6 +257,7 @@ def test_status_translation_is_shared_by_both_fmi_versions():
 # -- in a scenario ---------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_fmi3_controller_in_a_scenario_equals_the_fmi2_units(tmp_path, fmu3, elcentro):
     """The FMI 3.0 constant-current unit swapped in for the controller gives exactly the columns of the
     pythonfmu ConstantCurrent unit and of the SOSM unit's passive mode at the same current."""

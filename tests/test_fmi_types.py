@@ -22,9 +22,9 @@ from orchestration.master.errors import ScenarioError, SimulationError
 from orchestration.master.execution import execute
 from orchestration.master.graph import Link
 from orchestration.master.recorder import Recorder, write_timeseries
+from orchestration.master.resolve import resolve
 from orchestration.master.scenario import load_scenario
 from orchestration.master.session import run_plan
-from orchestration.master.system import resolve
 
 from .fake_units import FakeUnit, clock
 from .typed_build import ITEMS, TYPES2, TYPES3, build_typed2, build_typed3

@@ -1,6 +1,6 @@
-"""Every unit string our FMUs declare is what the README's FMU table says, and a valid SI unit.
+"""Every unit string our FMUs declare is what the FMU table of docs/fmu_variables.md says, and a valid SI unit.
 
-The README's "FMU variables" table is read as written (m/s², N·s/m, A·s^½/m^½, "–" for
+The "FMU variables" table of docs/fmu_variables.md is read as written (m/s², N·s/m, A·s^½/m^½, "–" for
 none) and turned into FMI unit syntax; each declared ``Unit`` is parsed here into SI base
 exponents (N = kg·m·s⁻²) and compared with the ``BaseUnit`` the modelDescription gives
 (none may be given only where a power is fractional).
@@ -40,8 +40,8 @@ def si_exponents(unit: str) -> dict[str, Fraction]:
 
 
 def readme_units() -> dict[str, dict[str, str | None]]:
-    """FMU -> variable name pattern -> unit in FMI syntax (None: no unit), from the README's table."""
-    text = (PROJECT / "README.md").read_text()
+    """FMU -> variable name pattern -> unit in FMI syntax (None: no unit), from the table of docs/fmu_variables.md."""
+    text = (PROJECT / "docs" / "fmu_variables.md").read_text()
     table = text[text.index("## FMU variables"):]
     table = table[: table.index("\n## ", 3)]
     out: dict[str, dict[str, str | None]] = {}
@@ -59,7 +59,7 @@ def readme_units() -> dict[str, dict[str, str | None]]:
         units = [u.strip() for u in units_text.replace(" / ", ",").split(",")]
         if len(units) == 1:
             units *= len(names)
-        assert len(units) == len(names), f"README row {line!r}: {len(names)} variables, {len(units)} units"
+        assert len(units) == len(names), f"table row {line!r}: {len(names)} variables, {len(units)} units"
         for name, unit in zip(names, units, strict=True):
             out.setdefault(fmu, {})[name] = None if unit in ("–", "-") else _fmi_syntax(unit)
     return out
@@ -96,16 +96,16 @@ def test_declared_units_are_si_and_match_their_base_units(fmu_dir, name):
 def test_declared_units_are_the_readme_units(fmu_dir, name):
     readme = readme_units()
     units, _ = _declared(fmu_dir, name)
-    if name == "MreIsolatorC":  # README: "as MreIsolator"
+    if name == "MreIsolatorC":  # the table: "as MreIsolator"
         assert units == _declared(fmu_dir, "MreIsolator")[0]
         return
     rows = readme[name]
     checked = set()
     for pattern, unit in rows.items():
         matching = [v for v in units if re.fullmatch(pattern, v)]
-        assert matching, f"README names {name}.{pattern}, which the FMU does not have"
+        assert matching, f"the table names {name}.{pattern}, which the FMU does not have"
         for variable in matching:
-            assert units[variable] == unit, f"{name}.{variable}: declared {units[variable]!r}, README {unit!r}"
+            assert units[variable] == unit, f"{name}.{variable}: declared {units[variable]!r}, table {unit!r}"
             checked.add(variable)
     if name == "SosmCurrentController":  # "c0_0 … beta_1 (6): as the isolator"
         isolator, _ = _declared(fmu_dir, "MreIsolator")
@@ -113,7 +113,7 @@ def test_declared_units_are_the_readme_units(fmu_dir, name):
             assert units[variable] == isolator[variable], variable
             checked.add(variable)
     unchecked = {v for v, u in units.items() if u is not None} - checked
-    if name == "BoucWenIsolator":  # its coefficients are "SI" in the README: checked for that above
+    if name == "BoucWenIsolator":  # its coefficients are "SI" in the table: checked for that above
         unchecked -= {"k_0", "k_1", "c_0", "c_1", "alpha_0", "alpha_1", "beta_0", "beta_1", "gamma_0", "gamma_1",
                       "delta", "n", "F0", "y"}  # y: the internal hysteretic state, not in the table
-    assert not unchecked, f"{name}: units the README does not give: {sorted(unchecked)}"
+    assert not unchecked, f"{name}: units the table does not give: {sorted(unchecked)}"

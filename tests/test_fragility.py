@@ -1,4 +1,4 @@
-"""Fragility fitting (orchestration/studies/fragility.py): maximum likelihood against known lognormals."""
+"""Fragility fitting (orchestration/ida_study/fragility.py): maximum likelihood against known lognormals."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from orchestration.studies.fragility import Stripe, fit_fragility
+from orchestration.ida_study.fragility import Stripe, fit_fragility
 
 LEVELS = np.geomspace(0.1, 1.5, 10)
 

@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from orchestration.api import load_scenario, run
-from orchestration.studies.ida import COLUMNS
+from orchestration.ida_study.ida_metrics import COLUMNS
 
 from .conftest import PROJECT, RECORDS
 
@@ -62,6 +62,7 @@ def small_study(tmp_path: Path, **changes) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_bad_input_lists_every_problem_and_computes_nothing(tmp_path):
     study = small_study(tmp_path, suite="peer-nga-west2",
                         intensity={"measure": "sa", "levels": [0.3, 0.2, 0.5]},
@@ -86,6 +87,7 @@ def test_bad_input_lists_every_problem_and_computes_nothing(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_exit_2_before_any_work(tmp_path):
     out = tmp_path / "out"
     proc = ida_cli(str(small_study(tmp_path)), "--scheduler", "tcp://127.0.0.1:9", "--out", str(out), cwd=tmp_path)
@@ -94,7 +96,7 @@ def test_an_unreachable_scheduler_is_exit_2_before_any_work(tmp_path):
 
 
 def test_the_scheduler_comes_from_the_option_else_the_environment(monkeypatch):
-    from orchestration.studies.engine import scheduler_address
+    from orchestration.batch.pool import scheduler_address
 
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
     assert scheduler_address(None) is None
@@ -107,6 +109,7 @@ def read_results(folder: Path) -> list[dict]:
     return pq.read_table(folder / "results.parquet").to_pylist()
 
 
+@pytest.mark.slow
 def test_small_ida_end_to_end_then_resume(tmp_path):
     out = tmp_path / "study"
     proc = ida_cli(str(small_study(tmp_path)), "--out", str(out), "--quiet", cwd=tmp_path)
@@ -157,6 +160,7 @@ def test_small_ida_end_to_end_then_resume(tmp_path):
         [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
 def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path, how):
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or SIGTERM to the tool alone
@@ -190,14 +194,16 @@ def test_ctrl_c_cancels_what_is_pending_and_still_writes_the_report(tmp_path, ho
     assert all(r["status"] in ("ok", "diverged") for r in read_results(out))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("flag", ["--report"])
 def test_report_regenerates_from_the_data(tmp_path, flag):
     assert ida_cli(flag, str(tmp_path / "nowhere"), cwd=tmp_path).returncode == 2
 
 
+@pytest.mark.slow
 def test_the_shipped_ida_studies_are_valid():
-    from orchestration.studies.ida import prepare_ida
-    from orchestration.studies.ida_config import load_ida
+    from orchestration.ida_study.ida_config import load_ida
+    from orchestration.ida_study.ida_plan import prepare_ida
 
     small = PROJECT / "scenarios" / "ida_shipped.yaml"
     prepared = prepare_ida(small, *load_ida(small))

@@ -16,7 +16,6 @@ sys.path.insert(0, str(ROOT))
 
 from components.identification.bouc_wen_joint import fit_bouc_wen_joint  # noqa: E402
 from components.identification.bouc_wen_native import path_states  # noqa: E402
-from components.identification.config import ConfigError, validate  # noqa: E402
 from components.identification.ffoa import FFOASettings, candidates, ffoa_minimize  # noqa: E402
 from components.identification.generalized import (  # noqa: E402
     GeneralizationError,
@@ -42,7 +41,6 @@ from components.identification.models import (  # noqa: E402
     hyperbolic_objective,
 )
 from components.identification.paper_tables import TABLE1, TEST_MATRIX  # noqa: E402
-from components.identification.pipeline import identify_all  # noqa: E402
 from components.identification.testdata import (  # noqa: E402
     NoiseModel,
     TestDataError,
@@ -59,6 +57,8 @@ from components.physics.bouc_wen_core import (  # noqa: E402
     envelope_rate,
 )
 from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS, GeneralizedCoefficients  # noqa: E402
+from orchestration.identification.ident_config import ConfigError, validate  # noqa: E402
+from orchestration.identification.ident_pipeline import identify_all  # noqa: E402
 
 CLI = ROOT / "orchestration" / "identify.py"
 
@@ -167,6 +167,7 @@ def test_bad_test_files_raise_clear_errors_naming_the_file(tmp_path, case, expec
 # ----------------------------------------------------------------------------- structured identifier
 
 
+@pytest.mark.slow
 def test_structured_recovers_true_parameters_without_noise():
     """Noise-free synthetic data with exact velocity: all four parameters to 1e-5 in every condition."""
     records = generate_synthetic(2, NoiseModel(force_rel=0.0), repeats=1, include_velocity=True, F0_n=0.7)
@@ -178,6 +179,7 @@ def test_structured_recovers_true_parameters_without_noise():
             assert res.params[p] == pytest.approx(value, rel=1e-5, abs=1e-8), (rec.condition, p)
 
 
+@pytest.mark.slow
 def test_structured_fit_is_at_the_noise_floor_for_every_condition(synthetic_fits):
     """2 % noise: RMS error within 5 % of the noise RMS; at or below the RMS of the true parameters
     (it is the LS optimum); c0 and the small-displacement stiffness k0 + alpha*beta recovered."""
@@ -227,6 +229,7 @@ def test_ffoa_is_seedable_positive_and_records_path_and_history():
     assert a.best_smell < 0.05  # within 5 % RMS of the target after 150 iterations
 
 
+@pytest.mark.slow
 def test_ffoa_with_paper_settings_reaches_the_noise_floor(synthetic_fits):
     """Honest check with N_pop = 50, N_iter = 300 on six conditions spanning the matrix."""
     conds = [
@@ -310,6 +313,7 @@ def test_repeats_sharing_a_path_are_integrated_once_with_the_same_numbers(synthe
     assert states.shape == (2, noisy.F.size) and np.all(np.isfinite(states))
 
 
+@pytest.mark.slow
 def test_conditions_in_parallel_processes_give_the_same_identifications(synthetic_fits):
     """identify_all through the CLI's process map (two spawned workers of the studies' runner)
     equals the in-process run: FFOA streams are seeded per condition and identifier."""
@@ -388,6 +392,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, str(CLI), *args], capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_cli_runs_refuses_to_overwrite_and_reports(tmp_path):
     cfg = tmp_path / "id.yaml"
     cfg.write_text(
@@ -433,6 +438,7 @@ def test_cli_runs_refuses_to_overwrite_and_reports(tmp_path):
     assert again.returncode == 2 and "exists" in again.stderr and "Traceback" not in again.stderr
 
 
+@pytest.mark.slow
 def test_cli_bad_config_and_bad_data_exit_2(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("ffoa:\n  n_pop: 50\n  popsize: 3\n")
@@ -450,6 +456,7 @@ def test_cli_bad_config_and_bad_data_exit_2(tmp_path):
     assert not (tmp_path / "o2").exists()
 
 
+@pytest.mark.slow
 def test_cli_does_not_write_parameters_when_nothing_converges(tmp_path):
     cfg = tmp_path / "strict.yaml"
     cfg.write_text(
@@ -485,6 +492,7 @@ def test_default_bouc_wen_coefficients_are_physical_on_the_current_range():
         assert min(p.k, p.c, p.alpha, p.beta, p.gamma) >= 0 and p.beta + p.gamma > 0, i
 
 
+@pytest.mark.slow
 def test_bouc_wen_data_show_model_form_error_of_the_hyperbolic_model():
     """On Bouc-Wen-generated data the best hyperbolic fit stays well above the noise floor."""
     records = generate_synthetic(
@@ -504,6 +512,7 @@ def test_bouc_wen_data_show_model_form_error_of_the_hyperbolic_model():
     assert max(ratios) > 2.0, ratios
 
 
+@pytest.mark.slow
 def test_joint_bouc_wen_fit_recovers_a_known_current_model():
     true = SYNTHETIC_DEFAULT_PAPER_UNITS
     records = generate_synthetic(

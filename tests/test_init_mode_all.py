@@ -23,6 +23,8 @@ import pytest
 
 from .conftest import PROJECT, shipped_record
 
+pytestmark = pytest.mark.slow  # each FMU driven three times in child processes: seconds per unit
+
 _DRIVER = textwrap.dedent("""
     import json, math, shutil, sys
     from fmpy import extract, read_model_description
@@ -68,6 +70,10 @@ _ISOLATOR_SIGNAL = {"x": (0.01, 6.0, 0.0), "v": (0.06, 6.0, 0.0), "i": (1.2, 3.0
 _ISOLATOR_STARTS = {"x": 0.004, "v": 0.02, "i": 1.0}
 _CONTROLLER_SIGNAL = {"x": (0.01, 6.0, 0.0), "v": (0.06, 6.0, 0.01), "a": (0.4, 6.0, 0.0)}
 _CONTROLLER_STARTS = {"x": 0.003, "v": -0.02, "a": 0.1}
+# the model-based controllers (issue 23): base motion, floor accelerations and isolator force
+_ESTIMATOR_SIGNAL = {"x": (0.004, 6.0, 0.0), "v": (0.024, 6.0, 0.0), "F": (80.0, 6.0, 0.0),
+                     **{f"a_{j}": (1.0 + 0.2 * j, 6.0, 0.0) for j in range(4)}}
+_ESTIMATOR_STARTS = {"x": 0.003, "v": -0.02, "F": 50.0, "a_1": 0.3}
 
 # FMU -> parameters and input start values set (all non-default), parameters every run needs,
 # and the input signal {input: (amplitude, angular frequency [rad/s], offset)}.
@@ -108,6 +114,26 @@ UNITS: dict[str, dict] = {
         "signal": _CONTROLLER_SIGNAL,
     },
     "ConstantCurrent": {"values": {"current": 1.7}, "required": {}, "signal": {}},
+    "OpenSeesBuilding": {  # needs openseespy (the extra "opensees"); skipped without it
+        "values": {"substeps": 2, "ag": 0.8, "F": 40.0},
+        "required": {"script": str(PROJECT / "scenarios" / "structures" / "dyke_linear.py")},
+        "signal": {"ag": (2.0, 8.0, 0.0), "F": (60.0, 5.0, 0.0)},
+    },
+    "ClippedOptimalCurrentController": {
+        "values": {"law": "inverse", "i_nom": 1.0, "q_x": 2.0e4, "s_ground": 0.02, **_ESTIMATOR_STARTS},
+        "required": {},
+        "signal": _ESTIMATOR_SIGNAL,
+    },
+    "LyapunovCurrentController": {
+        "values": {"i_max": 2.5, "q_drift": 1.0e5, "r_acc": 2e-5, **_ESTIMATOR_STARTS},
+        "required": {},
+        "signal": _ESTIMATOR_SIGNAL,
+    },
+    "FrequencyCurrentController": {
+        "values": {"window": 50, "update_every": 5, "i_start": 1.0, "f_hi": 8.0, "ag": 0.3},
+        "required": {},
+        "signal": {"ag": (2.0, 9.0, 0.0)},
+    },
 }
 
 
@@ -126,6 +152,13 @@ def _drive(fmu, spec: dict, when: str) -> np.ndarray:
 def test_values_set_in_initialization_mode_are_used(fmu_dir, name):
     from fmpy import read_model_description
 
+    if name == "OpenSeesBuilding":
+        from components.physics.opensees_building_core import OpenSeesUnavailable, import_opensees
+
+        try:
+            import_opensees()
+        except OpenSeesUnavailable as exc:
+            pytest.skip(f"openseespy cannot be imported here: {exc}")
     fmu = fmu_dir / f"{name}.fmu"
     md = read_model_description(str(fmu))
     record = str(shipped_record("elcentro_1940_ns.csv"))

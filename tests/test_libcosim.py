@@ -22,12 +22,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from orchestration.engine_hooks import plan_scenario, resolve_scenario
 from orchestration.interop.libcosim_export import LibcosimRun, libcosim_available, libcosim_scheme, run_libcosim
-from orchestration.interop.ssp import export_ssp, load_ssp
+from orchestration.interop.ssp_package import export_ssp, load_ssp
 from orchestration.master.recorder import Recorder
 from orchestration.master.scenario import SimulationSpec
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario, resolve_scenario
 
 from .conftest import shipped_record
 
@@ -38,7 +38,8 @@ STOP = "simulation.stop_time=10"  # strong motion starts at 5.4 s
 TOLERANCE = 1e-9
 
 _REASON = libcosim_available()
-pytestmark = pytest.mark.skipif(_REASON is not None, reason=_REASON or "")
+# slow: the Kobe system in libcosim and in our master, 10 s of record each
+pytestmark = [pytest.mark.skipif(_REASON is not None, reason=_REASON or ""), pytest.mark.slow]
 
 
 def _compare(lc: LibcosimRun, ours: Recorder) -> np.ndarray:
@@ -112,5 +113,12 @@ def test_c_isolator_in_libcosim(sosm, tmp_path):
     lc_c, ours_c, _ = _both(tmp_path, "c", (DYADIC_STEP, f"units.isolator.fmu={PROJECT / 'fmus' / 'MreIsolatorC.fmu'}"))
     worst = _compare(lc_c, ours_c)
     assert np.all(worst <= TOLERANCE), dict(zip(lc_c.names, worst, strict=True))
-    # and libcosim with the C isolator gives the libcosim run with the Python one
-    np.testing.assert_array_equal(lc_c.data, sosm[0].data)
+    # and libcosim with the C isolator gives the libcosim run with the Python one, to rounding. The two isolators
+    # evaluate the same law along different math paths (C's libm sinh and the compiler's FMA contraction; numpy),
+    # so on another machine the force may differ in its last bits (here they are equal). Such a last-bit change,
+    # carried through the damped system, stays near 1e-12 of each column's peak: a change of OpenBLAS kernel moved
+    # the first 10 s of Kobe by at most 3.6e-12 of peak (docs/performance.md). TOLERANCE (1e-9 of peak, as for
+    # every libcosim comparison here) leaves a wide margin.
+    peak = np.max(np.abs(sosm[0].data), axis=0)
+    worst = np.max(np.abs(lc_c.data - sosm[0].data), axis=0) / peak
+    assert np.all(worst <= TOLERANCE), dict(zip(lc_c.names, worst, strict=True))

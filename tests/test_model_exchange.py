@@ -1,4 +1,4 @@
-"""FMI 2.0 Model Exchange FMUs as units of the master (orchestration.master.me_unit.MeUnit).
+"""FMI 2.0 Model Exchange FMUs as units of the master (orchestration.master.fmi2_me_unit.MeUnit).
 
 The FMUs are small C models of our own (tests/me/*.c, built by tests/me_build.py): a driven
 damped oscillator (linear ODE), a bouncing ball (state events), a pulse-driven lag (time
@@ -17,13 +17,13 @@ import pytest
 from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
+from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError, SimulationError, UnitCallError
 from orchestration.master.execution import time_grid
-from orchestration.master.fmu_file import FmuFormatError, read_description
-from orchestration.master.fmu_unit import FmuUnit
-from orchestration.master.me_unit import MeUnit
+from orchestration.master.fmi2_cosim_unit import FmuUnit
+from orchestration.master.fmi2_me_unit import MeUnit
+from orchestration.master.fmu_description import FmuFormatError, read_description
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario
 
 from .me_build import build_all
 
@@ -373,8 +373,8 @@ def test_bad_interface_settings_are_scenario_errors(fmus, tmp_path, spec, text):
 def test_the_interface_travels_through_an_ssp_package(fmus, tmp_path, monkeypatch):
     """A both-interface FMU run as model exchange comes back from SSP export and import as model exchange,
     with its tolerance, and runs to the same values (the settings ride in an org.mre-cosim.unit annotation)."""
-    from orchestration.interop.ssp import export_ssp, load_ssp
-    from orchestration.master.system import resolve
+    from orchestration.interop.ssp_package import export_ssp, load_ssp
+    from orchestration.master.resolve import resolve
 
     units = (f"  osc:\n    fmu: {fmus['OscillatorBoth']}\n    interface: model-exchange\n"
              "    relative_tolerance: 1.0e-8\n")

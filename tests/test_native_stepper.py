@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from orchestration.engine_hooks import plan_scenario
 from orchestration.master import native_stepper
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.execution import execute
 from orchestration.master.graph import Link
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario
 
 from .conftest import PROJECT
 from .fake_units import clock, sampler
@@ -30,6 +30,7 @@ def _run(tmp_path, scenario, executor, *overrides):
     ("simulation.algorithm=jacobi", "simulation.inputs=step-mean"),
     ("simulation.algorithm=jacobi", "simulation.inputs=hold"),
 ])
+@pytest.mark.slow
 def test_native_and_python_executors_agree_bit_for_bit(tmp_path, coupling):
     runs = {ex: _run(tmp_path, KOBE, ex, "simulation.stop_time=4", *coupling) for ex in ("python", "native")}
     assert runs["python"].result.executor == "python" and runs["native"].result.executor == "native"
@@ -53,6 +54,7 @@ def test_a_unit_failure_reads_the_same_from_both_executors(tmp_path, failing_fmu
     assert np.array_equal(r_py.data[: r_py.count], r_nat.data[: r_nat.count], equal_nan=True)
 
 
+@pytest.mark.slow
 def test_a_limit_stops_both_executors_at_the_same_step(tmp_path):
     limit = ("simulation.stop_time=5", "limits.max_abs={building.x_0: 0.002}")
     runs = {ex: _run(tmp_path, PROJECT / "scenarios" / "elcentro.yaml", ex, *limit) for ex in ("python", "native")}

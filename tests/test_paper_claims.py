@@ -1,8 +1,8 @@
-"""The paper's case-study claims as checks (orchestration.studies.claims), on hand-made peaks."""
+"""The paper's case-study claims as checks (orchestration.case_study.claims), on hand-made peaks."""
 
 from __future__ import annotations
 
-from orchestration.studies.claims import check_claims
+from orchestration.case_study.claims import check_claims
 
 
 def peaks(acc: list[float], drift: list[float]) -> dict[str, float]:
@@ -62,7 +62,7 @@ def current_metrics(i_min: float, i_max: float, at_top: float, at_zero: float) -
 
 
 def test_the_fig15_current_claim_needs_the_range_and_no_plateau():
-    from orchestration.studies.claims import PINNED_SHARE, current_claim
+    from orchestration.case_study.claims import PINNED_SHARE, current_claim
 
     assert current_claim(current_metrics(0.0, 2.5, 0.10, 0.05), (0.0, 2.5), "a", "s").holds is True
     assert current_claim(current_metrics(0.0, 3.0, 0.00, 0.05), (0.0, 2.5), "a", "s").holds is False  # above 2.5 A

@@ -1,12 +1,12 @@
-"""Fig. 3(b) and Fig. 13 computations (components.identification.paper_figures) against closed forms."""
+"""Fig. 3(b) and Fig. 13 computations (orchestration.identification.paper_figures) against closed forms."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from components.identification.paper_figures import effective_stiffness, fig3b, fig13, random_motion
 from components.physics.mre_isolator_core import MM, GeneralizedCoefficients, HyperbolicParams
+from orchestration.identification.paper_figures import effective_stiffness, fig3b, fig13, random_motion
 
 
 def test_effective_stiffness_of_an_undamped_loop_is_the_secant_at_the_amplitude():

@@ -87,6 +87,7 @@ def test_an_unexpected_layout_is_refused_not_guessed(upstream):
         remove_exit_hook(bytes(swapped), "swapped.so")
 
 
+@pytest.mark.slow
 def test_every_built_fmu_is_free_of_the_hook(fmu_dir):
     checked = 0
     for fmu in sorted(fmu_dir.glob("*.fmu")):
@@ -113,6 +114,7 @@ for path in sys.argv[1:]:
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind not installed")
 def test_exit_after_freeing_every_unit_touches_no_freed_memory(fmu_dir, tmp_path):
     fmus = [str(fmu_dir / f"{m}.fmu") for m in ("GroundMotionSource", "ShearBuilding", "MreIsolator",

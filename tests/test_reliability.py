@@ -36,12 +36,12 @@ from hypothesis.errors import InvalidArgument
 
 from components.build.pythonfmu_units import FmuSource, build
 from orchestration import identify, run, ssp, study, tune
-from orchestration.interop.ssp import export_ssp
+from orchestration.engine_hooks import file_kind, plan_scenario
+from orchestration.interop.ssp_package import export_ssp
 from orchestration.master.errors import ScenarioError
 from orchestration.master.scenario import load_scenario
 from orchestration.master.session import run_plan
 from orchestration.master.yaml_source import DataFile
-from orchestration.project import file_kind, plan_scenario
 
 from .conftest import PROJECT
 from .tree_mutation import key_paths, mutate
@@ -113,6 +113,7 @@ def test_a_failing_unit_stops_the_run_and_keeps_partial_results(tmp_path, failin
             assert unit.freed, unit.name
 
 
+@pytest.mark.slow
 def test_cli_exit_code_and_message_for_a_failing_unit(tmp_path, failing_fmu):
     out = tmp_path / "run"
     proc = subprocess.run([*RUN, str(scenario_with_saboteur(tmp_path, failing_fmu, "discard")), "--out", str(out),
@@ -134,35 +135,40 @@ def test_divergence_limit_stops_the_run(tmp_path):
     assert all(u.freed for u in outcome.units)
 
 
-def test_sigint_leaves_a_complete_readable_partial_run(tmp_path):
-    out = tmp_path / "run"
-    proc = subprocess.Popen(
-        args=[*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
-                             "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def kobe_run_stepping(out: Path, log: Path) -> subprocess.Popen:
+    """``run.py`` on Kobe, returned once it is stepping: its first isolator warning (t = 10.857 s of 150 s) is on
+    stderr (a file, polled; at most 120 s under load). Signalled then, the run is mid-way with rows recorded."""
+    with open(log, "w") as err:
+        proc = subprocess.Popen([*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
+                                 "--no-plots"], stdout=subprocess.DEVNULL, stderr=err, text=True)
     deadline = time.monotonic() + 120
-    while not out.exists() and time.monotonic() < deadline:  # the folder appears once the run starts
-        time.sleep(0.1)
-    time.sleep(1.5)
+    while "[isolator] warning" not in log.read_text() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert proc.poll() is None, f"the run ended before it could be interrupted: {log.read_text()}"
+    assert "[isolator] warning" in log.read_text(), "the run did not reach t = 10.9 s within 120 s"
+    return proc
+
+
+@pytest.mark.slow
+def test_sigint_leaves_a_complete_readable_partial_run(tmp_path):
+    out, log = tmp_path / "run", tmp_path / "stderr.txt"
+    proc = kobe_run_stepping(out, log)
     proc.send_signal(signal.SIGINT)
-    _, stderr = proc.communicate(timeout=120)
+    proc.wait(timeout=120)
+    stderr = log.read_text()
     assert proc.returncode == 1, stderr
     assert "interrupted (SIGINT received)" in stderr and "Traceback" not in stderr
     summary = check_partial(out, 150_000)
     assert summary["status"] == "interrupted" and summary["steps_done"] < 150_000
 
 
+@pytest.mark.slow
 def test_sigterm_does_the_same(tmp_path):
-    out = tmp_path / "run"
-    proc = subprocess.Popen(
-        args=[*RUN, str(PROJECT / "scenarios" / "kobe.yaml"), "--out", str(out), "--quiet",
-                             "--no-plots"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while not out.exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    time.sleep(1.0)
+    out, log = tmp_path / "run", tmp_path / "stderr.txt"
+    proc = kobe_run_stepping(out, log)
     proc.send_signal(signal.SIGTERM)
-    _, stderr = proc.communicate(timeout=120)
-    assert proc.returncode == 1, stderr
+    proc.wait(timeout=120)
+    assert proc.returncode == 1, log.read_text()
     assert check_partial(out, 150_000)["status"] == "interrupted"
 
 
@@ -309,6 +315,7 @@ def _run_scenario_file(tmp_path: Path, text: bytes | str, use_out: bool) -> tupl
     return run_tool(run.main, argv, work), work
 
 
+@pytest.mark.slow
 @FAST
 @given(data=st.data())
 def test_one_key_changed_in_a_real_scenario(tmp_path, data):
@@ -322,6 +329,7 @@ def test_one_key_changed_in_a_real_scenario(tmp_path, data):
         check_outcome(outcome, {0, 1, 2}, "out" if use_out else "runs")
 
 
+@pytest.mark.slow
 @FAST
 @given(data=st.data())
 def test_one_byte_changed_in_a_real_scenario(tmp_path, data):
@@ -399,6 +407,7 @@ SSP_VALUES = ["abc", "INF", "-INF", "NaN", "", "1e400", "../../x", "/etc/passwd"
               "resources/../../x", "\u00e9"]
 
 
+@pytest.mark.slow
 @FAST
 @given(data=st.data())
 def test_one_attribute_changed_in_a_real_ssp(tmp_path, short_ssp, data):
@@ -438,6 +447,7 @@ def _symlink_entry(name: str, target: str) -> tuple[zipfile.ZipInfo, bytes]:
 
 @pytest.mark.parametrize("case", ["traversal", "absolute", "symlink", "bomb", "entries", "no ssd", "truncated",
                                   "fmu removed", "record removed", "settings units", "results outside"])
+@pytest.mark.slow
 def test_hostile_ssp_archives_are_exit_2_and_extract_nothing(tmp_path, short_ssp, case):
     work = tmp_path / "work"
     work.mkdir()
@@ -485,6 +495,7 @@ def test_hostile_ssp_archives_are_exit_2_and_extract_nothing(tmp_path, short_ssp
 RECORD_TOKENS = ["1_0", "inf", "nan", "0x10", "abc", "", "1e400", "-", "1,2,3", "\u00e9", "1e-3", "+.5"]
 
 
+@pytest.mark.slow
 @FAST
 @given(data=st.data())
 def test_one_token_changed_in_a_real_record(tmp_path, data):
@@ -545,8 +556,9 @@ def test_an_fmu_whose_library_cannot_load_is_exit_2_before_any_folder(tmp_path, 
     assert "units.isolator.fmu" in outcome.err and "bad.fmu" in outcome.err
 
 
+@pytest.mark.slow
 def test_an_fmu_that_unpacks_beyond_the_limit_is_refused(tmp_path):
-    from orchestration.master.fmu_file import FmuFormatError, read_description
+    from orchestration.master.fmu_description import FmuFormatError, read_description
 
     fmu = tmp_path / "bomb.fmu"
     _copy_zip(PROJECT / "fmus" / "MreIsolator.fmu", fmu, lambda name, raw: raw)
@@ -586,6 +598,7 @@ TOOLS = {"run.py": (run.main, []), "study.py": (study.main, []), "tune.py": (tun
          "ssp.py export": (ssp.main, None)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["fifo", "latin-1", "deep", "laughs", "recursive", "folder", "device", "missing"])
 @pytest.mark.parametrize("tool", list(TOOLS))
 def test_every_tool_refuses_hostile_files_with_exit_2(tmp_path, tool, kind):
@@ -606,12 +619,12 @@ def test_every_tool_refuses_hostile_files_with_exit_2(tmp_path, tool, kind):
 
 
 def test_an_internal_error_is_exit_3_with_one_line_and_a_log(tmp_path, monkeypatch):
-    import orchestration.project
+    import orchestration.engine_hooks
 
     def bug(*args, **kwargs):
         raise ZeroDivisionError("deliberate")
 
-    monkeypatch.setattr(orchestration.project, "plan_scenario", bug)
+    monkeypatch.setattr(orchestration.engine_hooks, "plan_scenario", bug)
     monkeypatch.setenv("MRE_COSIM_CRASH_DIR", str(tmp_path))
     work = tmp_path / "work"
     work.mkdir()
@@ -623,6 +636,7 @@ def test_an_internal_error_is_exit_3_with_one_line_and_a_log(tmp_path, monkeypat
     assert log.parent == tmp_path and "Traceback" in log.read_text() and "deliberate" in log.read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("delay", [0.4, 0.9])
 def test_ctrl_c_while_starting_is_one_line_and_exit_130(tmp_path, delay):
     proc = subprocess.Popen(

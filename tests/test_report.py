@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from orchestration.api import ScenarioError, load_scenario, run
-from orchestration.master.report import RunDescription, decimate, strong_motion_window
+from orchestration.building_report import strong_motion_window
+from orchestration.master.report import RunDescription, decimate
 from orchestration.master.session import describe_run
 
 from .conftest import PROJECT
@@ -63,7 +64,7 @@ def test_the_shipped_scenarios_caption_says_record_scale_and_strategy(overrides,
     plan = load_scenario(SCENARIOS / "kobe.yaml", list(overrides))
     from orchestration.master.report import caption
 
-    assert caption(plan.loaded.scenario.report, describe_run(plan), "kobe") == expected
+    assert caption(plan.report, describe_run(plan), "kobe") == expected
 
 
 def test_a_caption_naming_an_unknown_unit_is_a_scenario_error():
@@ -73,6 +74,7 @@ def test_a_caption_naming_an_unknown_unit_is_a_scenario_error():
     assert "no unit named 'grund'" in info.value.problems[0].message
 
 
+@pytest.mark.slow
 def test_run_folder_names_the_run_and_its_source_revision(tmp_path):
     plan = load_scenario(SCENARIOS / "northridge.yaml", ["simulation.stop_time=2", "controller.mode=passive"])
     res = run(plan, out=tmp_path / "run", plots=True)
@@ -93,6 +95,7 @@ def test_run_folder_names_the_run_and_its_source_revision(tmp_path):
     assert pngs == ["current.png", "drifts.png", "isolator_hysteresis.png", "top_floor_acceleration.png"]
 
 
+@pytest.mark.slow
 def test_a_spilled_recording_gives_the_same_results_and_leaves_nothing(tmp_path, monkeypatch):
     # With a zero threshold every run records into unlinked memory-mapped files in its folder
     # (a long run's memory does not grow with its length); the CSV must be byte-identical to
@@ -110,3 +113,51 @@ def test_a_spilled_recording_gives_the_same_results_and_leaves_nothing(tmp_path,
     assert (tmp_path / "spilled" / "timeseries.csv").read_bytes() == (in_memory.folder / "timeseries.csv").read_bytes()
     assert sorted(p.name for p in (tmp_path / "spilled").iterdir()) == [
         ".mre-cosim-run", "manifest.json", "summary.json", "timeseries.csv"]
+
+
+def test_the_engine_alone_refuses_the_buildings_report_keys_with_file_and_line():
+    # Without the application's report hook the engine knows only caption and labels: every
+    # role of scenarios/isolated_building.yaml is an unknown key at its own line of that file.
+    from dataclasses import replace
+
+    from orchestration.engine_hooks import HOOKS
+    from orchestration.master.resolve import resolve
+    from orchestration.master.scenario import load_scenario as load_file
+
+    base = SCENARIOS / "isolated_building.yaml"
+    roles = ["ground_acceleration", "base_displacement", "drifts", "floor_accelerations", "current",
+             "isolator_force", "displacement_limits"]
+    lines = base.read_text().splitlines()
+    expected = {f"report.{role}": (str(base), next(n for n, text in enumerate(lines, 1)
+                                                   if text.startswith(f"  {role}:"))) for role in roles}
+    with pytest.raises(ScenarioError) as info:
+        resolve(load_file(SCENARIOS / "kobe.yaml"), hooks=replace(HOOKS, report=None))  # FMUs built if needed
+    found = {p.key: (p.file, p.line) for p in info.value.problems}
+    assert found == expected
+    assert all(p.message == "unknown key" for p in info.value.problems)
+
+
+def test_a_misspelt_role_in_a_file_is_refused_with_its_line_and_a_suggestion(tmp_path):
+    path = tmp_path / "typo.yaml"
+    path.write_text(f"extends: {SCENARIOS / 'kobe.yaml'}\nreport:\n  drfits: [building.drift_1]\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    (problem,) = info.value.problems
+    assert (problem.key, problem.file, problem.line) == ("report.drfits", str(path), 3)
+    assert problem.message == "unknown key (did you mean 'drifts'?)"
+
+
+def test_the_engines_summary_is_every_variables_peak_and_a_hook_cannot_replace_its_keys():
+    from types import SimpleNamespace
+
+    from orchestration.master.report import ReportHook, report_summary
+    from orchestration.master.scenario import ReportSpec
+
+    data = np.array([[0.0, 5.0], [-3.0, 1.0], [2.0, 4.0]])
+    rec = SimpleNamespace(names=["a.x", "a.s", "b.y"], kinds=["real", "string", "real"], count=3,
+                          data=np.column_stack([data[:, 0], np.zeros(3), data[:, 1]]))
+    hook = ReportHook(ReportSpec, summarize=lambda spec, rec, run: {"status": "mine", "variables": 0, "extra": 1})
+    out = report_summary(rec, ReportSpec(), hook, RunDescription({}, {}), reserved={"status"})
+    assert out == {"extra": 1, "variables": {"a.x": {"max_abs": 3.0, "min": -3.0, "max": 2.0},
+                                             "b.y": {"max_abs": 5.0, "min": 1.0, "max": 5.0}}}
+    assert report_summary(rec, ReportSpec(), None, RunDescription({}, {}))["variables"] == out["variables"]

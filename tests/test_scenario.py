@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from orchestration.engine_hooks import HOOKS, check_record, resolve_scenario
 from orchestration.master.datapath import ENV_VAR, find_data_file
 from orchestration.master.errors import ScenarioError
 from orchestration.master.scenario import load_scenario
 from orchestration.master.yaml_source import DataFile
-from orchestration.project import HOOKS, check_record, resolve_scenario
 
 from .conftest import PROJECT
 
@@ -234,6 +234,7 @@ def test_algebraic_loop_is_a_scenario_error(fmu_dir, tmp_path):
                                       "use python orchestration/identify.py"),
     ("study.py", "kobe.yaml", "this is a scenario file, not a study file: use python orchestration/run.py"),
 ])
+@pytest.mark.slow
 def test_the_wrong_kind_of_file_names_the_right_tool(tmp_path, tool, file, hint):
     import subprocess
     import sys
@@ -315,7 +316,7 @@ def test_a_result_too_large_for_the_disk_budget_is_refused(monkeypatch, tmp_path
 
 
 def test_string_choices_declared_in_a_description():
-    from orchestration.master.system import declared_choices
+    from orchestration.master.resolve import declared_choices
 
     assert declared_choices("'sosm' or 'passive' (constant current)") == ("sosm", "passive")
     assert declared_choices('one of "a", "b" | "c"') == ("a", "b", "c")

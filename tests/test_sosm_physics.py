@@ -117,6 +117,7 @@ def test_default_gains_are_the_tuned_gains():
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.tuples(finite, finite, finite), min_size=1, max_size=40),
        st.floats(min_value=0.0, max_value=3.0), st.floats(min_value=1e-4, max_value=0.05))
+@pytest.mark.slow
 def test_a_zero_release_band_is_the_papers_law_exactly(measurements, i0, h):
     """s_release = 0 (the default): every step is sign(Psi) * u of Eq. (39), integrated and clipped, to the bit."""
     gains = SosmGains(lam=6.0, rho=0.9, zeta=7.0, theta=1.3, i_max=2.5)

@@ -13,11 +13,11 @@ import pytest
 from fmpy import read_model_description
 from fmpy.ssp.ssd import read_ssd, read_ssv
 
-from orchestration.interop.ssp import SSD_FILE, export_ssp, load_ssp
+from orchestration.engine_hooks import plan_scenario, resolve_scenario
+from orchestration.interop.ssp_package import SSD_FILE, export_ssp, load_ssp
 from orchestration.master.errors import ScenarioError
 from orchestration.master.scenario import LoadedScenario, load_scenario
 from orchestration.master.session import run_plan
-from orchestration.project import plan_scenario, resolve_scenario
 
 PROJECT = Path(__file__).resolve().parent.parent
 KOBE = PROJECT / "scenarios" / "kobe.yaml"
@@ -110,6 +110,7 @@ def test_loaded_package_is_the_same_scenario(kobe_ssp, kobe):
     assert not workdir.exists()
 
 
+@pytest.mark.slow
 def test_running_the_package_equals_running_the_yaml(kobe_ssp, tmp_path):
     overrides = ("simulation.start_time=5", "simulation.stop_time=7", "controller.mode=passive",
                  "controller.i_passive=1.5")
@@ -236,6 +237,7 @@ def test_not_a_package(tmp_path):
         load_ssp(empty)
 
 
+@pytest.mark.slow
 def test_cli_export_and_check(kobe, kobe_ssp, tmp_path):
     out = tmp_path / "cli.ssp"
     script = str(PROJECT / "orchestration" / "ssp.py")
@@ -252,6 +254,7 @@ def test_cli_export_and_check(kobe, kobe_ssp, tmp_path):
     assert "component 'building' has no connector 'Fx'" in done.stderr
 
 
+@pytest.mark.slow
 def test_run_cli_takes_a_package(kobe_ssp, tmp_path):
     out = tmp_path / "run"
     done = subprocess.run([sys.executable, str(PROJECT / "orchestration" / "run.py"), str(kobe_ssp),
@@ -301,9 +304,9 @@ def test_archive_entries_outside_the_folder_are_refused(kobe_ssp, tmp_path, entr
 
 
 def test_an_archive_beyond_the_size_limit_is_refused_before_extracting(kobe_ssp, tmp_path, monkeypatch):
-    from orchestration.master import fmu_file
+    from orchestration.master import safe_archive
 
-    monkeypatch.setattr(fmu_file, "MAX_UNPACKED_BYTES", 1 << 20)
+    monkeypatch.setattr(safe_archive, "MAX_UNPACKED_BYTES", 1 << 20)
     with pytest.raises(ScenarioError, match=r"unpacks to [\d,]+ bytes, more than the 1,048,576 allowed"):
         load_ssp(kobe_ssp, workdir=tmp_path / "x")
     assert not (tmp_path / "x").exists()

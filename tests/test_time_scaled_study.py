@@ -7,10 +7,11 @@ import pytest
 
 from components.physics.ground_motion_core import G, read_record
 from orchestration.api import load_scenario, run
-from orchestration.project import plan_scenario
-from orchestration.studies.config import load_study
-from orchestration.studies.report import ground_reading
-from orchestration.studies.tuning import run_overrides, system_setup
+from orchestration.case_study.case_config import load_study
+from orchestration.case_study.case_records import RecordInfo
+from orchestration.case_study.case_report import ground_reading
+from orchestration.case_study.tuning import run_overrides, system_setup
+from orchestration.engine_hooks import plan_scenario
 
 from .conftest import PROJECT
 
@@ -52,8 +53,8 @@ def test_the_co_simulation_plays_the_compressed_record(tmp_path):
 
 
 def test_the_report_names_the_reading():
-    def study(scale: float, time_scale: float) -> dict:
-        return {"records": {"a": {"scale": scale, "time_scale": time_scale}}}
+    def study(scale: float, time_scale: float) -> dict[str, RecordInfo]:
+        return {"a": RecordInfo("a.yaml", 10.0, [1.0, 1.0], "a.csv", scale, time_scale, 2)}
 
     assert "time-scaled reading" in ground_reading(study(1.0, 0.5))
     assert "amplitude reading" in ground_reading(study(0.5, 1.0))

@@ -16,6 +16,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 from .conftest import PROJECT
 
 
@@ -62,6 +64,7 @@ _CATEGORIES = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_errors_reach_the_logger_whatever_the_categories(fmu_dir, tmp_path):
     missing = tmp_path / "gone.csv"
     for categories in ([], ["logStatusWarning"], ["logAll"], ["noSuchCategory"]):

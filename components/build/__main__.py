@@ -1,6 +1,6 @@
 """``python -m components.build``: build every FMU of the project into fmus/ (exit codes: see --help)."""
 
-from components.cli import quiet_interrupts
+from mre_common.guard import quiet_interrupts
 
 quiet_interrupts()  # Ctrl-C or SIGTERM during the imports below: one line, exit 130, no traceback
 

@@ -19,23 +19,27 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
-import subprocess
 import tempfile
 import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 from xml.etree import ElementTree as ET
 
 from components.build.model_description import DEFAULT_FMU_DIR, BuildError, complete_model_description
 from components.physics.mre_isolator_core import (
+    BEYOND_RANGE,
     COEFFICIENT_DOCS,
     CURRENT_MAX_A,
     DEVICE_LIMIT_M,
     IDENTIFIED_RANGE_M,
+    STOP_DAMPING,
+    STOP_STIFFNESS,
     TABLE2,
 )
+from mre_common.atomic_files import atomic_write
+from mre_common.c_compile import CompileFailed, CompilerMissing, compile_c
 
 COMPONENTS_DIR = Path(__file__).resolve().parents[1]
 C_SOURCE = COMPONENTS_DIR / "c_isolator" / "mre_isolator.c"
@@ -55,7 +59,7 @@ class CVariable:
     causality: str
     variability: str
     unit: str | None
-    start: float | int | None
+    start: float | int | str | None
     description: str
     macro: str | None = None  # C default macro fed from the Python value
 
@@ -89,6 +93,13 @@ def variables() -> list[CVariable]:
                   macro="DEFAULT_X_LIMIT", **par),
         CVariable("F", 16, "Real", "output", "continuous", "N", None,
                   "total isolator restoring force (acts on the base against x)"),
+        # added after F, as in the Python unit (its descriptions: the master reads the String's choices from them)
+        CVariable("beyond_range", 17, "String", unit=None, start=BEYOND_RANGE[0],
+                  description=f"{' or '.join(repr(b) for b in BEYOND_RANGE)}: the law beyond x_identified", **par),
+        CVariable("k_stop", 18, "Real", unit="N/m", start=STOP_STIFFNESS,
+                  description="stiffness of the stop at x_limit ('stop')", macro="DEFAULT_K_STOP", **par),
+        CVariable("c_stop", 19, "Real", unit="N.s/m", start=STOP_DAMPING,
+                  description="damping of the stop at x_limit ('stop')", macro="DEFAULT_C_STOP", **par),
     ]
     return out
 
@@ -182,15 +193,13 @@ def _rendered_source(defines: dict[str, str]) -> str:
 
 
 def _compile(source: Path) -> Path:
-    compiler = os.environ.get("CC", "cc")
     target = source.with_suffix(".so")
-    command = [compiler, *CFLAGS, f"-I{headers_dir()}", str(source), "-o", str(target), "-lm"]
     try:
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
-    except FileNotFoundError:
-        raise BuildError(f"no C compiler {compiler!r} found (set CC)") from None
-    if done.returncode != 0:
-        raise BuildError(f"compiling {C_SOURCE.name} failed:\n{' '.join(command)}\n{done.stderr}")
+        compile_c(source, target, (*CFLAGS, f"-I{headers_dir()}"), ("-lm",))
+    except CompilerMissing as exc:
+        raise BuildError(f"no C compiler {exc.compiler!r} found (set CC)") from None
+    except CompileFailed as exc:
+        raise BuildError(f"compiling {C_SOURCE.name} failed:\n{' '.join(exc.command)}\n{exc.stderr}") from None
     return target
 
 
@@ -214,19 +223,17 @@ def build_c_isolator(dest: Path = DEFAULT_FMU_DIR) -> Path:
         source = Path(tmp) / C_SOURCE.name
         source.write_text(_rendered_source(defines))
         library = _compile(source)
-        partial = dest / f".{C_FMU_NAME}.{os.getpid()}.partial"
-        try:
-            with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as z:
+
+        def write(f: BinaryIO) -> None:
+            with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as z:
                 for name, data in (
                     ("modelDescription.xml", model_description(guid)),
                     (f"binaries/{plat}/{MODEL_IDENTIFIER}{ext}", library.read_bytes()),
                     (f"sources/{C_SOURCE.name}", source.read_bytes()),
                 ):
                     z.writestr(zipfile.ZipInfo(name, _ZIP_TIME), data, zipfile.ZIP_DEFLATED)
-            os.replace(partial, dest / C_FMU_NAME)
-        finally:
-            if partial.exists():
-                partial.unlink()
+
+        atomic_write(dest / C_FMU_NAME, write, binary=True)
     return dest / C_FMU_NAME
 
 

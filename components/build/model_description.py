@@ -41,6 +41,15 @@ SI_UNITS: dict[str, dict[str, int] | None] = {
     "A/s": {"A": 1, "s": -1},
     "m0.5/s1.5": None,  # m^0.5 s^-1.5: SOSM gain theta
     "A.s0.5/m0.5": None,  # A s^0.5 m^-0.5: SOSM gain zeta
+    # model-based controllers (issue 23): frequencies, H2 weights and white-noise intensities
+    "Hz": {"s": -1},
+    "1/m2": {"m": -2},
+    "s2/m2": {"m": -2, "s": 2},
+    "s4/m2": {"m": -2, "s": 4},
+    "1/N2": {"kg": -2, "m": -2, "s": 4},
+    "m2/s3": {"m": 2, "s": -3},
+    "m2.s": {"m": 2, "s": 1},
+    "N2.s": {"kg": 2, "m": 2, "s": -3},
 }
 
 _ELEMENT_ORDER = (

@@ -18,7 +18,7 @@ from pathlib import Path
 from components.build.c_isolator import ensure_c_isolator, is_c_isolator
 from components.build.model_description import DEFAULT_FMU_DIR, BuildError
 from components.build.pythonfmu_units import build, discover, is_stale, known_fmu
-from components.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, UsageError, guarded
+from mre_common.guard import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, UsageError, guarded
 
 EPILOG = ("exit codes: 0 built or up to date; 1 a build failed (e.g. no C compiler); 2 bad arguments or an "
           "unusable --dest (nothing written); " + EPILOG_COMMON)
@@ -74,7 +74,7 @@ def _build(argv: list[str] | None) -> int:
     parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.add_argument(
-        "--storeys", type=int, nargs="*", default=[], help="also build shear-building variants with N storeys"
+        "--storeys", type=int, nargs="*", default=[], help="also build building variants (ShearBuilding, OpenSeesBuilding) with N storeys"
     )
     args = parser.parse_args(argv)
     bad = [n for n in args.storeys if not 1 <= n <= MAX_STOREYS]

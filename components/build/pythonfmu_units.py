@@ -24,17 +24,18 @@ from __future__ import annotations
 import functools
 import importlib.util
 import inspect
-import os
 import re
-import subprocess
 import sys
 import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 from components.build.exit_fix import ExitHookError, remove_exit_hook
 from components.build.model_description import DEFAULT_FMU_DIR, BuildError, complete_model_description
+from mre_common.atomic_files import atomic_write
+from mre_common.c_compile import CompileFailed, CompilerMissing, compile_c, compiler_name
 
 COMPONENTS_DIR = Path(__file__).resolve().parents[1]
 SHELLS_DIR = COMPONENTS_DIR / "shells"
@@ -57,6 +58,7 @@ class FmuSource:
     requirements: tuple[str, ...] = ()  # Python packages the unit imports on the host
     handles_state: bool = False  # the shell implements fmi2GetFMUstate/fmi2SetFMUstate
     failed_step_is_error: bool = False  # FMU_FAILED_STEP_STATUS = "error": do_step False -> fmi2Error
+    once_per_process: bool = False  # FMU_ONCE_PER_PROCESS = True: canBeInstantiatedOnlyOncePerProcess
 
     @property
     def fmu_name(self) -> str:
@@ -106,27 +108,72 @@ def _shells_signature() -> tuple[tuple[str, float], ...]:
     return tuple((p.name, p.stat().st_mtime) for p in sorted(SHELLS_DIR.glob("*_fmu.py")))
 
 
+_SHELL_CONSTANTS = ("FMU_CORE_MODULES", "FMU_FAILED_STEP_STATUS", "FMU_REQUIREMENTS", "FMU_ONCE_PER_PROCESS",
+                    "N_STOREYS")
+
+
+def _read_shell(script: Path) -> tuple[str, dict[str, object], set[str]] | None:
+    """(class name, module-level ``FMU_*``/``N_STOREYS`` constants, the class's method names) of a shell, read
+    from its source without running it; None when that cannot be read statically (not exactly one class
+    deriving from ``Fmi2Slave``, or a constant that is not a literal).
+
+    Running a shell imports its physics cores (scipy.signal, scipy.linalg, ...): the staleness check
+    before every run paid that for every shell in the project, most of which the run does not use.
+    """
+    import ast
+
+    tree = ast.parse(script.read_text(), str(script))
+    constants: dict[str, object] = {}
+    classes = []
+    for node in tree.body:
+        targets = []
+        if isinstance(node, ast.Assign):
+            targets, value = node.targets, node.value
+        elif isinstance(node, ast.AnnAssign) and node.value is not None:
+            targets, value = [node.target], node.value
+        for target in targets:
+            if isinstance(target, ast.Name) and target.id in _SHELL_CONSTANTS:
+                try:
+                    constants[target.id] = ast.literal_eval(value)
+                except ValueError:
+                    return None
+        if isinstance(node, ast.ClassDef) and any(
+                (b.id if isinstance(b, ast.Name) else getattr(b, "attr", None)) == "Fmi2Slave" for b in node.bases):
+            classes.append(node)
+    if len(classes) != 1:
+        return None
+    methods = {f.name for f in classes[0].body if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef)}
+    return classes[0].name, constants, methods
+
+
+def _shell_by_running(script: Path) -> tuple[str, dict[str, object], set[str]]:
+    """:func:`_read_shell` by importing the shell (for a shell whose constants are computed)."""
+    module = _load_module(script, f"_discover_{script.stem}")
+    cls = _shell_class(module)
+    return cls.__name__, {k: getattr(module, k) for k in _SHELL_CONSTANTS if hasattr(module, k)}, set(vars(cls))
+
+
 @functools.lru_cache(maxsize=16)
 def _discover(storeys: tuple[int, ...], signature: tuple[tuple[str, float], ...]) -> tuple[FmuSource, ...]:
-    """Loading every shell module costs ~0.1 s each: done once per process and set of shells."""
+    """The shells read from their source (:func:`_read_shell`), once per process and set of shells."""
     found = []
     for script in sorted(SHELLS_DIR.glob("*_fmu.py")):
-        module = _load_module(script, f"_discover_{script.stem}")
-        cls = _shell_class(module)
-        cores = tuple(getattr(module, "FMU_CORE_MODULES", ()))
-        failed_step = getattr(module, "FMU_FAILED_STEP_STATUS", "discard")
+        class_name, module, methods = _read_shell(script) or _shell_by_running(script)
+        cores = tuple(module.get("FMU_CORE_MODULES", ()))
+        failed_step = module.get("FMU_FAILED_STEP_STATUS", "discard")
         if failed_step not in FAILED_STEP_STATUSES:
             raise BuildError(f"{script}: FMU_FAILED_STEP_STATUS must be one of {FAILED_STEP_STATUSES}")
         extra = {
-            "requirements": tuple(getattr(module, "FMU_REQUIREMENTS", ())),
-            "handles_state": "_get_fmu_state" in vars(cls) and "_set_fmu_state" in vars(cls),
+            "requirements": tuple(module.get("FMU_REQUIREMENTS", ())),
+            "handles_state": "_get_fmu_state" in methods and "_set_fmu_state" in methods,
             "failed_step_is_error": failed_step == "error",
+            "once_per_process": bool(module.get("FMU_ONCE_PER_PROCESS", False)),
         }
-        if hasattr(module, "N_STOREYS"):
-            for n in sorted({module.N_STOREYS, *storeys}):
-                found.append(FmuSource(script, cls.__name__, cores, storeys=n, **extra))
+        if "N_STOREYS" in module:
+            for n in sorted({module["N_STOREYS"], *storeys}):
+                found.append(FmuSource(script, class_name, cores, storeys=n, **extra))
         else:
-            found.append(FmuSource(script, cls.__name__, cores, **extra))
+            found.append(FmuSource(script, class_name, cores, **extra))
     return tuple(found)
 
 
@@ -192,17 +239,15 @@ def compile_log_shim(workdir: Path, inner: str, failed_step_is_error: bool) -> b
     """The shim library (see fmi2_log_shim.c) loading ``inner`` from its own folder; None without a compiler."""
     from components.build.c_isolator import headers_dir
 
-    compiler = os.environ.get("CC", "cc")
     target = workdir / "shim.so"
-    command = [compiler, *SHIM_CFLAGS, f"-I{headers_dir()}", f'-DINNER_LIBRARY="{inner}"',
-               f"-DSTEP_FAILURE_IS_ERROR={int(failed_step_is_error)}", str(LOG_SHIM_SOURCE), "-o", str(target),
-               "-ldl", "-lpthread"]
+    flags = (*SHIM_CFLAGS, f"-I{headers_dir()}", f'-DINNER_LIBRARY="{inner}"',
+             f"-DSTEP_FAILURE_IS_ERROR={int(failed_step_is_error)}")
     try:
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
-    except FileNotFoundError:
+        compile_c(LOG_SHIM_SOURCE, target, flags, ("-ldl", "-lpthread"))
+    except CompilerMissing:
         return None
-    if done.returncode != 0:
-        raise BuildError(f"compiling {LOG_SHIM_SOURCE.name} failed:\n{' '.join(command)}\n{done.stderr}")
+    except CompileFailed as exc:
+        raise BuildError(f"compiling {LOG_SHIM_SOURCE.name} failed:\n{' '.join(exc.command)}\n{exc.stderr}") from None
     return target.read_bytes()
 
 
@@ -214,7 +259,7 @@ def _linux_binary(source: FmuSource, name: str, data: bytes, workdir: Path) -> l
     inner = Path(name).name.removesuffix(".so") + INNER_SUFFIX
     shim = compile_log_shim(workdir, inner, source.failed_step_is_error)
     if shim is None:
-        print(f"note: no C compiler ({os.environ.get('CC', 'cc')}): {source.fmu_name} is built without its "
+        print(f"note: no C compiler ({compiler_name()}): {source.fmu_name} is built without its "
               f"logging shim, so a host sees its errors only with debug logging on", file=sys.stderr)
         return [(name, fixed)]
     return [(name, shim), (str(Path(name).parent / inner), fixed)]
@@ -236,6 +281,8 @@ def build(source: FmuSource, dest: Path) -> Path:
         docs.mkdir()
         (docs / "index.html").write_text(_documentation(source))
         options = {"canGetAndSetFMUstate": True} if source.handles_state else {}
+        if source.once_per_process:
+            options["canBeInstantiatedOnlyOncePerProcess"] = True
         sys.path.insert(0, str(CORES_DIR))
         try:
             raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=[*cores, requirements],
@@ -246,11 +293,8 @@ def build(source: FmuSource, dest: Path) -> Path:
         finally:
             sys.path.remove(str(CORES_DIR))
             sys.modules.pop(script.stem, None)
-        # Written next to the target and renamed: a concurrent reader never sees half an FMU.
-        fd, partial = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=dest)
-        os.close(fd)
-        try:
-            with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
+        def write(f: BinaryIO) -> None:
+            with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as zout:
                 for item in zin.infolist():
                     data = zin.read(item.filename)
                     if item.filename == "modelDescription.xml":
@@ -262,14 +306,11 @@ def build(source: FmuSource, dest: Path) -> Path:
                             zout.writestr(info, binary)
                         continue
                     zout.writestr(item, data)
-            os.chmod(partial, 0o644)
-            os.replace(partial, target)
+
+        try:  # written next to the target and renamed: a concurrent reader never sees half an FMU
+            atomic_write(target, write, binary=True, mode=0o644)
         except ExitHookError as exc:
-            Path(partial).unlink(missing_ok=True)
             raise BuildError(str(exc)) from None
-        except BaseException:
-            Path(partial).unlink(missing_ok=True)
-            raise
     return target
 
 

@@ -13,6 +13,13 @@
  *
  * Range policy (as the Python unit): |x| > x_identified, |x| > x_limit and a current
  * outside [0, i_max] each log one fmi2Warning when entered (checked in fmi2DoStep).
+ *
+ * Beyond the identified range (String parameter beyond_range, as
+ * mre_isolator_core.bounded_force_law, same operations in the same order): 'extrapolate'
+ * (default, Eq. 17 everywhere), 'tangent' (the spring continues along its tangent at
+ * +-x_identified) or 'stop' ('tangent' plus a Kelvin stop at +-x_limit with k_stop [N/m] and
+ * c_stop [N.s/m], never pulling). Out-of-domain parameters are logged as an error when
+ * initialization ends and fail the first step (F reads NaN), as in the Python unit.
  * Non-finite inputs make fmi2DoStep return fmi2Error with a logged message
  * "input <name> = <value> is not finite at t = <t> s".
  *
@@ -73,6 +80,12 @@
 #ifndef DEFAULT_N_ISOLATORS
 #define DEFAULT_N_ISOLATORS 2
 #endif
+#ifndef DEFAULT_K_STOP
+#define DEFAULT_K_STOP 5.0e6
+#endif
+#ifndef DEFAULT_C_STOP
+#define DEFAULT_C_STOP 12047.178237241671
+#endif
 
 /* Value references: the same as the pythonfmu unit's. */
 enum {
@@ -80,8 +93,14 @@ enum {
     VR_K0_0, VR_K0_1, VR_C0_0, VR_C0_1, VR_ALPHA_0, VR_ALPHA_1, VR_BETA_0, VR_BETA_1,
     VR_F0, VR_N_ISOLATORS, VR_I_MAX, VR_X_IDENTIFIED, VR_X_LIMIT,
     VR_F,
+    VR_BEYOND_RANGE, VR_K_STOP, VR_C_STOP, /* added after F, as in the Python unit */
     N_VR
 };
+
+/* beyond_range: the policies of mre_isolator_core.BEYOND_RANGE, and an unknown text. */
+enum { BEYOND_EXTRAPOLATE, BEYOND_TANGENT, BEYOND_STOP, BEYOND_UNKNOWN };
+static const char *const BEYOND_NAMES[] = {"extrapolate", "tangent", "stop"};
+#define BEYOND_TEXT_MAX 64
 
 typedef enum { MODE_INSTANTIATED, MODE_INITIALIZATION, MODE_STEP, MODE_TERMINATED, MODE_ERROR } Mode;
 
@@ -89,8 +108,11 @@ enum { OUT_IDENTIFIED, OUT_LIMIT, OUT_CURRENT, N_OUT };
 
 /* Everything fmi2GetFMUstate saves: a plain struct, so a state is a copy of it. */
 typedef struct {
-    double real[N_VR];      /* Real variables by value reference (F and n_isolators unused) */
+    double real[N_VR];      /* Real variables by value reference (F, n_isolators, beyond_range unused) */
     fmi2Integer n_isolators;
+    int beyond;             /* BEYOND_* */
+    char beyond_text[BEYOND_TEXT_MAX]; /* the String as set (truncated if longer) */
+    int failed;             /* parameters out of their domain when initialization ended */
     int outside[N_OUT];     /* inside/outside each range at the last step (warn on entry) */
     Mode mode;
     double time;            /* last communication point reached */
@@ -113,7 +135,7 @@ typedef struct {
 
 static const char *const VR_NAMES[N_VR] = {
     "x", "v", "i", "k0_0", "k0_1", "c0_0", "c0_1", "alpha_0", "alpha_1", "beta_0", "beta_1",
-    "F0", "n_isolators", "i_max", "x_identified", "x_limit", "F",
+    "F0", "n_isolators", "i_max", "x_identified", "x_limit", "F", "beyond_range", "k_stop", "c_stop",
 };
 
 /* -- logging -------------------------------------------------------------------------- */
@@ -175,8 +197,44 @@ static void set_defaults(ModelState *s) {
     s->real[VR_I_MAX] = DEFAULT_I_MAX;
     s->real[VR_X_IDENTIFIED] = DEFAULT_X_IDENTIFIED;
     s->real[VR_X_LIMIT] = DEFAULT_X_LIMIT;
+    s->real[VR_K_STOP] = DEFAULT_K_STOP;
+    s->real[VR_C_STOP] = DEFAULT_C_STOP;
     s->n_isolators = DEFAULT_N_ISOLATORS;
+    s->beyond = BEYOND_EXTRAPOLATE;
+    strcpy(s->beyond_text, BEYOND_NAMES[BEYOND_EXTRAPOLATE]);
     s->mode = MODE_INSTANTIATED;
+}
+
+/* Why the parameters are out of their domain (written to why), or 0 if they are not: the checks
+ * of mre_isolator_core.bounded_force_law, in its order. */
+static int parameter_problem(const ModelState *s, char *why, size_t size) {
+    const double *r = s->real;
+    const int stop = s->beyond == BEYOND_STOP;
+    if (s->beyond == BEYOND_UNKNOWN) {
+        snprintf(why, size, "beyond_range = '%s' is not one of 'extrapolate', 'tangent', 'stop'", s->beyond_text);
+        return 1;
+    }
+    if (s->beyond == BEYOND_EXTRAPOLATE) {
+        return 0;
+    }
+    if (!(r[VR_X_IDENTIFIED] > 0.0)) {
+        snprintf(why, size, "x_identified = %.17g m must be > 0", r[VR_X_IDENTIFIED]);
+        return 1;
+    }
+    if (stop && !(r[VR_X_LIMIT] > r[VR_X_IDENTIFIED])) {
+        snprintf(why, size, "x_limit = %.17g m must exceed x_identified = %.17g m", r[VR_X_LIMIT],
+                 r[VR_X_IDENTIFIED]);
+        return 1;
+    }
+    if (stop && !(r[VR_K_STOP] >= 0.0)) {
+        snprintf(why, size, "k_stop = %.17g N/m must not be negative", r[VR_K_STOP]);
+        return 1;
+    }
+    if (stop && !(r[VR_C_STOP] >= 0.0)) {
+        snprintf(why, size, "c_stop = %.17g N.s/m must not be negative", r[VR_C_STOP]);
+        return 1;
+    }
+    return 0;
 }
 
 /* The current as it enters the law: clipped to [0, i_max] (NaN passes, as in Python). */
@@ -191,17 +249,40 @@ static double clipped_current(const ModelState *s) {
     return i;
 }
 
-/* Eq. (17): the same operations in the same order as mre_isolator_core.isolator_force. */
+/* Eq. (17) with the beyond_range policy: the same operations in the same order as
+ * mre_isolator_core.force_law (inside +-x_identified, or 'extrapolate') and bounded_force_law
+ * (beyond it). C's sinh/cosh overflow to +-inf where Python's safe_sinh/safe_cosh give +-inf. */
 static double force(const ModelState *s) {
     const double *r = s->real;
     const double i = clipped_current(s);
     const double x = r[VR_X];
     const double v = r[VR_V];
+    const double xb = r[VR_X_IDENTIFIED];
+    const double n = (double)s->n_isolators;
     const double c0 = r[VR_C0_0] * i + r[VR_C0_1];
     const double k0 = r[VR_K0_0] * i + r[VR_K0_1];
     const double alpha = r[VR_ALPHA_0] * i + r[VR_ALPHA_1];
     const double beta = r[VR_BETA_0] * i + r[VR_BETA_1];
-    return (double)s->n_isolators * (c0 * v + k0 * x + alpha * sinh(beta * x) + r[VR_F0]);
+    double ax, sign, edge, spring, f, contact;
+    char why[256];
+    if (s->failed || (s->mode != MODE_STEP && parameter_problem(s, why, sizeof why))) {
+        return NAN; /* as the Python unit: no force from parameters out of their domain */
+    }
+    ax = fabs(x);
+    if (s->beyond == BEYOND_EXTRAPOLATE || ax <= xb) {
+        return n * (c0 * v + k0 * x + alpha * sinh(beta * x) + r[VR_F0]);
+    }
+    sign = x > 0.0 ? 1.0 : -1.0;
+    edge = sign * xb;
+    spring = k0 * edge + alpha * sinh(beta * edge) + (k0 + alpha * beta * cosh(beta * xb)) * (x - edge);
+    f = n * (c0 * v + spring + r[VR_F0]);
+    if (s->beyond == BEYOND_STOP && ax > r[VR_X_LIMIT]) {
+        contact = r[VR_K_STOP] * (ax - r[VR_X_LIMIT]) + r[VR_C_STOP] * sign * v;
+        if (contact > 0.0) {
+            f += sign * contact;
+        }
+    }
+    return f;
 }
 
 static void warn_on_entry(Instance *inst, int key, int outside, const char *fmt, ...) {
@@ -319,6 +400,13 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         return fmi2Error;
     }
     inst->s.mode = MODE_STEP;
+    {
+        char why[256];
+        inst->s.failed = parameter_problem(&inst->s, why, sizeof why);
+        if (inst->s.failed) { /* as the Python unit: logged here, and the first step fails */
+            log_message(inst, fmi2Error, "invalid isolator parameters: %s", why);
+        }
+    }
     return fmi2OK;
 }
 
@@ -352,7 +440,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (k = 0; k < nvr; k++) {
         if (vr[k] == VR_F) {
             value[k] = force(&inst->s);
-        } else if (vr[k] < N_VR && vr[k] != VR_N_ISOLATORS) {
+        } else if (vr[k] < N_VR && vr[k] != VR_N_ISOLATORS && vr[k] != VR_BEYOND_RANGE) {
             value[k] = inst->s.real[vr[k]];
         } else {
             log_message(inst, fmi2Error, "fmi2GetReal: no Real variable with value reference %u", vr[k]);
@@ -385,9 +473,19 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    (void)vr;
-    (void)value;
-    return nvr == 0 ? fmi2OK : fail((Instance *)c, "fmi2GetString", "the unit has no String variables");
+    Instance *inst = (Instance *)c;
+    size_t k;
+    if (!allowed(inst, "fmi2GetString", ANY_MODE)) {
+        return fmi2Error;
+    }
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_BEYOND_RANGE) {
+            log_message(inst, fmi2Error, "fmi2GetString: no String variable with value reference %u", vr[k]);
+            return fmi2Error;
+        }
+        value[k] = inst->s.beyond_text;
+    }
+    return fmi2OK;
 }
 
 /* Inputs may be set until the end; parameters (variability fixed) only before initialization ends. */
@@ -413,6 +511,9 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     for (k = 0; k < nvr; k++) {
         if (vr[k] == VR_N_ISOLATORS) {
             return fail(inst, "fmi2SetReal", "n_isolators is an Integer");
+        }
+        if (vr[k] == VR_BEYOND_RANGE) {
+            return fail(inst, "fmi2SetReal", "beyond_range is a String");
         }
         if (!settable(inst, "fmi2SetReal", vr[k])) {
             return fmi2Error;
@@ -448,9 +549,32 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
-    (void)vr;
-    (void)value;
-    return nvr == 0 ? fmi2OK : fail((Instance *)c, "fmi2SetString", "the unit has no String variables");
+    Instance *inst = (Instance *)c;
+    size_t k;
+    int p;
+    if (!allowed(inst, "fmi2SetString", M(MODE_INSTANTIATED) | M(MODE_INITIALIZATION) | M(MODE_STEP))) {
+        return fmi2Error;
+    }
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_BEYOND_RANGE) {
+            log_message(inst, fmi2Error, "fmi2SetString: no String variable with value reference %u", vr[k]);
+            return fmi2Error;
+        }
+        if (!settable(inst, "fmi2SetString", vr[k])) {
+            return fmi2Error;
+        }
+        if (value[k] == NULL) {
+            return fail(inst, "fmi2SetString", "beyond_range: a NULL string");
+        }
+        inst->s.beyond = BEYOND_UNKNOWN; /* refused when initialization ends, as in the Python unit */
+        for (p = BEYOND_EXTRAPOLATE; p < BEYOND_UNKNOWN; p++) {
+            if (strcmp(value[k], BEYOND_NAMES[p]) == 0) {
+                inst->s.beyond = p;
+            }
+        }
+        snprintf(inst->s.beyond_text, sizeof inst->s.beyond_text, "%s", value[k]);
+    }
+    return fmi2OK;
 }
 
 /* -- FMU state ------------------------------------------------------------------------ */
@@ -577,6 +701,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         return fmi2Error;
     }
     s = &inst->s;
+    if (s->failed) {
+        char why[256];
+        parameter_problem(s, why, sizeof why);
+        log_message(inst, fmi2Error, "invalid isolator parameters: %s", why);
+        s->mode = MODE_ERROR;
+        return fmi2Error;
+    }
     for (k = VR_X; k <= VR_I; k++) {
         if (!isfinite(s->real[k])) {
             log_message(inst, fmi2Error, "input %s = %g is not finite at t = %.6g s", VR_NAMES[k], s->real[k], t);
@@ -587,8 +718,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     ax = fabs(s->real[VR_X]);
     i = s->real[VR_I];
     warn_on_entry(inst, OUT_IDENTIFIED, ax > s->real[VR_X_IDENTIFIED],
-                  "|x| = %.3g mm left the identified range %.3g mm at t = %.6g s: the model is extrapolated",
-                  ax * 1e3, s->real[VR_X_IDENTIFIED] * 1e3, t);
+                  "|x| = %.3g mm left the identified range %.3g mm at t = %.6g s: %s",
+                  ax * 1e3, s->real[VR_X_IDENTIFIED] * 1e3, t,
+                  s->beyond == BEYOND_EXTRAPOLATE ? "the model is extrapolated"
+                                                  : "the law continues along its tangent at the boundary");
     warn_on_entry(inst, OUT_LIMIT, ax > s->real[VR_X_LIMIT],
                   "|x| = %.3g mm passed the device limit %.3g mm at t = %.6g s", ax * 1e3,
                   s->real[VR_X_LIMIT] * 1e3, t);

@@ -3,6 +3,8 @@
 testdata (CSV format, synthetic generator), models (Eq. 1-5 in paper units), ffoa (the
 paper's FFOA), structured (variable projection), identifiers (one result type),
 generalized (Eq. 13-16, parameter files), bouc_wen_joint (current-dependent Bouc-Wen),
-config / pipeline / report / figures (the CLI orchestration/identify.py).
-See docs/identification.md. All data shipped with the toolkit are synthetic.
+bouc_wen_native (the population kernel in C), paper_tables (the paper's Tables 1-2 and test
+matrix the fits and the synthetic data use). This is the fitting library; the application
+(configuration, pipeline, report, figures) is :mod:`orchestration.identification`, run by
+orchestration/identify.py. See docs/identification.md. All data shipped with the toolkit are synthetic.
 """

@@ -20,17 +20,15 @@ unit for x, dx_max and 1/beta, 1/gamma, 1/delta (identification: mm); y is dimen
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import math
 import os
-import subprocess
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from components.physics.bouc_wen_core import bouc_wen_step, envelope, envelope_rate
+from mre_common import c_compile
 
 SOURCE = Path(__file__).resolve().parent / "native" / "bouc_wen_kernel.c"
 CFLAGS = ("-shared", "-fPIC", "-O2", "-ffp-contract=off", "-fno-math-errno", "-fno-trapping-math", "-std=c99",
@@ -50,36 +48,12 @@ _LIBRARIES: dict[str, Any] = {}  # build -> loaded library
 _FAILED: dict[str, str] = {}  # build -> why it cannot be had
 
 
-def cache_dir() -> Path:
-    """Where the compiled kernel is kept (shared with the master's native executor)."""
-    return Path(os.environ.get("MRE_COSIM_CACHE") or Path.home() / ".cache" / "mre-cosim")
-
-
-def _compile(compiler: str, flags: tuple[str, ...], target: Path) -> None:
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, partial = tempfile.mkstemp(prefix=".bouc_wen_kernel.", suffix=".so", dir=target.parent)
-    os.close(fd)
-    try:
-        done = subprocess.run([compiler, *CFLAGS, str(SOURCE), "-o", partial, *flags],
-                              capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            raise OSError(f"compiling {SOURCE.name} with {compiler!r} failed: {done.stderr.strip()[:300]}")
-        os.replace(partial, target)  # atomic: a concurrent process sees the whole library or none
-    finally:
-        Path(partial).unlink(missing_ok=True)
-
-
 def _load(variant: str) -> Any:
     """Compile (once per source, compiler and flags) and load one build; OSError if impossible."""
-    compiler = os.environ.get("CC", "cc")
-    flags = VARIANTS[variant]
     try:
-        key = SOURCE.read_bytes() + " ".join((compiler, *CFLAGS, *flags)).encode()
-        target = cache_dir() / f"bouc_wen_kernel-{variant}-{hashlib.sha256(key).hexdigest()[:16]}.so"
-    except (RuntimeError, KeyError) as exc:  # no home folder for the cache
-        raise OSError(f"no cache folder for the kernel (set MRE_COSIM_CACHE): {exc}") from None
-    if not target.exists():
-        _compile(compiler, flags, target)
+        target = c_compile.compile_cached(SOURCE, CFLAGS, VARIANTS[variant], name=f"bouc_wen_kernel-{variant}")
+    except c_compile.CompileFailed as exc:
+        raise OSError(f"compiling {SOURCE.name} with {exc.compiler!r} failed: {exc.stderr.strip()[:300]}") from None
     library = ctypes.CDLL(str(target))
     p, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
     library.bouc_wen_states.argtypes = [i64, i64, i64, p, p, p, p, p, p, f64, f64, p, p]

@@ -19,9 +19,9 @@ import numpy as np
 import yaml
 
 from components.identification.paper_tables import CURRENTS_A, PARAMS, TABLE1
-from components.identification.testdata import atomic_write_text
 from components.physics.bouc_wen_core import BoucWenCurrentModel
 from components.physics.mre_isolator_core import GeneralizedCoefficients
+from mre_common.atomic_files import atomic_write_text
 
 LINEAR_IN_CURRENT = {
     "hyperbolic": ("k0", "c0", "alpha", "beta"),

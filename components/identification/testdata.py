@@ -28,7 +28,6 @@ import csv
 import io
 import math
 import os
-import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,7 @@ import numpy as np
 from components.identification.paper_tables import TABLE1, TEST_MATRIX, Condition
 from components.physics.bouc_wen_core import BoucWenCurrentModel, bouc_wen_states
 from components.physics.mre_isolator_core import HyperbolicParams
+from mre_common.atomic_files import atomic_write_text
 
 REQUIRED_COLUMNS = ("time_s", "displacement_mm", "force_n")
 OPTIONAL_COLUMNS = ("velocity_mm_s", "force_clean_n")
@@ -218,19 +218,6 @@ def read_folder(folder: str | os.PathLike) -> list[ShakeRecord]:
     if not paths:
         raise TestDataError(f"{folder}: no *.csv test files")
     return [read_csv(p) for p in paths]
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write a text file atomically (temporary file in the same folder, then os.replace)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_csv(record: ShakeRecord, path: str | os.PathLike) -> None:

@@ -16,7 +16,7 @@ current i, p(i) = p_slope * i + p_intercept (the paper's p^0 and p^1).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 
 MM = 1e-3  # metres per millimetre
@@ -201,3 +201,106 @@ def force_law(
         return n_isolators * (c0 * v + k0 * x + alpha * s + F0)
 
     return law
+
+
+# What the law does beyond the identified range (docs/structures.md).
+BEYOND_RANGE = ("extrapolate", "tangent", "stop")
+# The stop at +-x_limit (a moat wall or the device's own end stop), Kelvin-Voigt contact:
+# F_stop = k_stop * penetration + c_stop * penetration rate, never pulling (clipped at 0).
+# k_stop: about 100 times the two devices' tangent stiffness at 8 mm and 0 A (~52 kN/m) and
+# about 10 times the first storey's 516 kN/m: a wall far stiffer than the isolation.
+# c_stop: the Kelvin pounding model's damping for a coefficient of restitution e = 0.65
+# (Anagnostopoulos 1988, Earthq. Eng. Struct. Dyn. 16:443-456), zeta = -ln e / sqrt(pi^2 + ln^2 e)
+# = 0.136, on the whole isolated mass (4 x 98.3 kg) against k_stop: c = 2 zeta sqrt(k_stop m).
+STOP_STIFFNESS = 5.0e6  # N/m
+STOP_RESTITUTION = 0.65
+STOP_MASS = 4 * 98.3  # kg
+_zeta_stop = -math.log(STOP_RESTITUTION) / math.sqrt(math.pi**2 + math.log(STOP_RESTITUTION) ** 2)
+STOP_DAMPING = 2.0 * _zeta_stop * math.sqrt(STOP_STIFFNESS * STOP_MASS)  # N*s/m (~1.2e4)
+
+
+class ParameterError(ValueError):
+    """An isolator parameter out of its domain; ``parameter`` is its FMU name (e.g. ``k_stop``)."""
+
+    def __init__(self, parameter: str, message: str) -> None:
+        self.parameter = parameter
+        super().__init__(message)
+
+
+def bounded_force_law(
+    coeffs: GeneralizedCoefficients = TABLE2,
+    F0: float = 0.0,
+    n_isolators: int = 2,
+    beyond_range: str = "extrapolate",
+    x_identified: float = IDENTIFIED_RANGE_M,
+    x_limit: float = DEVICE_LIMIT_M,
+    k_stop: float = STOP_STIFFNESS,
+    c_stop: float = STOP_DAMPING,
+) -> Callable[[float, float, float], float]:
+    """``law(x, v, i)`` -> F [N] with a policy beyond the identified range +-x_identified [m].
+
+    * ``extrapolate``: Eq. (17) everywhere, :func:`force_law` itself (bit for bit).
+    * ``tangent``: beyond +-x_identified the spring part continues along its tangent at the
+      boundary, F_s(x) = F_s(+-x_id) + K_t(+-x_id) (x -+ x_id), K_t = n (k0 + alpha beta cosh(beta x_id)):
+      force continuous and C1 at the boundary; the viscous term n c0 v is unchanged.
+    * ``stop``: ``tangent`` plus a stop at +-x_limit [m]: k_stop [N/m] times the penetration plus
+      c_stop [N*s/m] times its rate, never pulling (Kelvin contact model of pounding,
+      Anagnostopoulos 1988).
+    """
+    if beyond_range not in BEYOND_RANGE:
+        raise ParameterError("beyond_range", f"beyond_range = {beyond_range!r} is not one of "
+                             f"{', '.join(map(repr, BEYOND_RANGE))}")
+    inner = force_law(coeffs, F0, n_isolators)
+    if beyond_range == "extrapolate":
+        return inner
+    if not (x_identified > 0.0):
+        raise ParameterError("x_identified", f"x_identified = {x_identified!r} m must be > 0")
+    stop = beyond_range == "stop"
+    if stop and not (x_limit > x_identified):
+        raise ParameterError("x_limit", f"x_limit = {x_limit!r} m must exceed x_identified = {x_identified!r} m")
+    for name, value, unit in (("k_stop", k_stop, "N/m"), ("c_stop", c_stop, "N.s/m")):
+        if stop and not (value >= 0.0):
+            raise ParameterError(name, f"{name} = {value!r} {unit} must not be negative")
+    c0_0, c0_1, k0_0, k0_1 = coeffs.c0_0, coeffs.c0_1, coeffs.k0_0, coeffs.k0_1
+    alpha_0, alpha_1, beta_0, beta_1 = coeffs.alpha_0, coeffs.alpha_1, coeffs.beta_0, coeffs.beta_1
+    xb = x_identified
+
+    def law(x: float, v: float, i: float) -> float:
+        ax = abs(x)
+        if ax <= xb:
+            return inner(x, v, i)
+        c0 = c0_0 * i + c0_1
+        k0 = k0_0 * i + k0_1
+        alpha = alpha_0 * i + alpha_1
+        beta = beta_0 * i + beta_1
+        sign = 1.0 if x > 0.0 else -1.0
+        edge = sign * xb
+        spring = k0 * edge + alpha * safe_sinh(beta * edge) + (k0 + alpha * beta * safe_cosh(beta * xb)) * (x - edge)
+        force = n_isolators * (c0 * v + spring + F0)
+        if stop and ax > x_limit:
+            contact = k_stop * (ax - x_limit) + c_stop * sign * v
+            if contact > 0.0:
+                force += sign * contact
+        return force
+
+    return law
+
+
+def parameter_problem(values: Mapping[str, float | int | str]) -> tuple[str, str] | None:
+    """(parameter, message) for the first isolator parameter out of its domain, or None.
+
+    ``values`` holds the FMU's parameters by name (the model description's start values overridden
+    by a scenario's): the check :func:`bounded_force_law` makes when the unit initializes, before
+    anything runs. Absent names take this module's defaults.
+    """
+    try:
+        coeffs = GeneralizedCoefficients(**{name: float(values.get(name, getattr(TABLE2, name)))
+                                            for name in COEFFICIENT_DOCS})
+        bounded_force_law(coeffs, float(values.get("F0", 0.0)), int(values.get("n_isolators", 2)),
+                          str(values.get("beyond_range", "extrapolate")),
+                          float(values.get("x_identified", IDENTIFIED_RANGE_M)),
+                          float(values.get("x_limit", DEVICE_LIMIT_M)), float(values.get("k_stop", STOP_STIFFNESS)),
+                          float(values.get("c_stop", STOP_DAMPING)))
+    except ParameterError as exc:
+        return exc.parameter, str(exc)
+    return None

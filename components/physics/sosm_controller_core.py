@@ -33,7 +33,9 @@ s_release [m/s].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -68,11 +70,22 @@ def _cosh(z: float) -> float:
         return math.inf
 
 
+GAIN_PARAMETERS = {"lam": "lambda"}  # a gain whose FMU parameter has another name (lambda is a Python keyword)
+
+
+class ParameterError(ValueError):
+    """A gain out of its domain; ``parameter`` is its FMU parameter name (e.g. ``lambda``, ``rho``)."""
+
+    def __init__(self, parameter: str, message: str) -> None:
+        self.parameter = parameter
+        super().__init__(message)
+
+
 @dataclass(frozen=True)
 class SosmGains:
     """Controller gains (README, SOSM gains)."""
 
-    # Defaults: the gains tuned on El Centro by orchestration/studies/tuning.py
+    # Defaults: the gains tuned on El Centro by orchestration/case_study/tuning.py
     # (scenarios/sosm_gains.yaml; a test keeps the two equal).
     lam: float = 13.75636215239138  # 1/s
     rho: float = 7.0795685336274365  # A/s
@@ -85,9 +98,11 @@ class SosmGains:
         for name in ("lam", "rho", "zeta", "theta", "i_max"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"SOSM gain {name} must be positive and finite, got {value}")
+                raise ParameterError(GAIN_PARAMETERS.get(name, name),
+                                     f"SOSM gain {name} must be positive and finite, got {value}")
         if not (math.isfinite(self.s_release) and self.s_release >= 0):
-            raise ValueError(f"SOSM release band s_release must be >= 0 m/s and finite, got {self.s_release}")
+            raise ParameterError("s_release", f"SOSM release band s_release must be >= 0 m/s and finite, "
+                                 f"got {self.s_release}")
 
 
 # The hand-picked gains used before tuning (and as the tuning's starting point).
@@ -152,3 +167,15 @@ class SosmController:
         """Integrate the current over h [s] with the measurements held; returns i [A]."""
         self.i = min(max(self.i + h * self.rate(x, v, a), 0.0), self.gains.i_max)
         return self.i
+
+
+def parameter_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    """(parameter, message) for the first gain out of its domain, or None: the check :class:`SosmGains`
+    makes when the unit initializes, for the FMU's parameter values by name (before any run)."""
+    default = SosmGains()
+    try:
+        SosmGains(**{f.name: float(values.get(GAIN_PARAMETERS.get(f.name, f.name), getattr(default, f.name)))
+                     for f in fields(SosmGains)})
+    except ParameterError as exc:
+        return exc.parameter, str(exc)
+    return None

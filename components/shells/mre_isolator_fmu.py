@@ -8,6 +8,11 @@ Range policy: |x| beyond the identified +-8 mm range and beyond the device's 15 
 limit each log one fmi2Warning when entered; a current outside [0, i_max] logs an
 fmi2Warning when entered and is clipped to [0, i_max] before it enters the law.
 Non-finite inputs make ``fmi2DoStep`` fail with fmi2Error and a logged message.
+
+Beyond the identified range (String parameter ``beyond_range``, docs/structures.md):
+'extrapolate' (default, Eq. 17 everywhere, as before), 'tangent' (the spring continues along
+its tangent at +-x_identified, C1) or 'stop' ('tangent' plus a Kelvin stop at +-x_limit with
+k_stop [N/m] and c_stop [N.s/m], acting once on the base, not per device).
 """
 
 from __future__ import annotations
@@ -16,16 +21,18 @@ import copy
 import math
 
 from mre_isolator_core import (
+    BEYOND_RANGE,
     COEFFICIENT_DOCS,
     CURRENT_MAX_A,
     DEVICE_LIMIT_M,
     IDENTIFIED_RANGE_M,
+    STOP_DAMPING,
+    STOP_STIFFNESS,
     TABLE2,
     GeneralizedCoefficients,
-    force_law,
-    isolator_force,
+    bounded_force_law,
 )
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 FMU_CORE_MODULES = ("mre_isolator_core",)
@@ -51,6 +58,10 @@ class MreIsolator(Fmi2Slave):
         self.i_max = CURRENT_MAX_A
         self.x_identified = IDENTIFIED_RANGE_M
         self.x_limit = DEVICE_LIMIT_M
+        self.beyond_range = "extrapolate"
+        self.k_stop = STOP_STIFFNESS
+        self.c_stop = STOP_DAMPING
+        self._failed = ""
         for name, value in TABLE2.as_dict().items():
             setattr(self, name, value)
         self._outside = {"identified": False, "limit": False, "current": False}
@@ -60,7 +71,8 @@ class MreIsolator(Fmi2Slave):
 
         self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
         self.fmi_units.update(
-            x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m"
+            x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m", k_stop="N/m",
+            c_stop="N.s/m",
         )
         self.fmi_dependencies = {"F": ("x", "v", "i")}
 
@@ -89,6 +101,11 @@ class MreIsolator(Fmi2Slave):
                 getter=self._force,
             )
         )
+        # Added after F, so that the value references of the original variables stay as they were.
+        choices = " or ".join(f"'{b}'" for b in BEYOND_RANGE)
+        self.register_variable(String("beyond_range", description=f"{choices}: the law beyond x_identified", **par))
+        self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
+        self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
         # The master exchanges the same value references every step: fast paths for them.
         vr = {v.name: v.value_reference for v in self.vars.values()}
         self._input_attrs = {vr["x"]: "x", vr["v"]: "v", vr["i"]: "i"}
@@ -104,17 +121,33 @@ class MreIsolator(Fmi2Slave):
             self._coeffs = GeneralizedCoefficients(**{name: getattr(self, name) for name in _COEFFICIENTS})
         return self._coeffs
 
+    def _make_law(self):
+        return bounded_force_law(self._coefficients(), self.F0, self.n_isolators, self.beyond_range,
+                                 self.x_identified, self.x_limit, self.k_stop, self.c_stop)
+
     def _force(self) -> float:
         if self._law is not None:
             return self._law(self.x, self.v, min(max(self.i, 0.0), self.i_max))
-        return isolator_force(self.x, self.v, self._current(), self._coefficients(), self.F0, self.n_isolators)
+        if self._failed:
+            return math.nan
+        try:
+            return self._make_law()(self.x, self.v, self._current())
+        except ValueError:
+            return math.nan  # reported when initialization ends
 
     def exit_initialization_mode(self):
+        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
         self._initialized = False
         self._law = None
-        coeffs = self._coefficients()
+        self._failed = ""
+        try:
+            law = self._make_law()
+        except ValueError as exc:
+            self._failed = f"invalid isolator parameters: {exc}"
+            self.log(self._failed, Fmi2Status.error)
+            return
         self._initialized = True
-        self._law = force_law(coeffs, self.F0, self.n_isolators)
+        self._law = law
 
     def set_real(self, vrs, values):
         if vrs == self._xvi:
@@ -132,6 +165,11 @@ class MreIsolator(Fmi2Slave):
             return [self._force()]
         return super().get_real(vrs)
 
+    def _beyond_text(self) -> str:
+        if self.beyond_range == "extrapolate":
+            return "the model is extrapolated"
+        return "the law continues along its tangent at the boundary"
+
     def _entered(self, key: str, outside: bool) -> bool:
         """True when a range is left now (it was inside at the previous step)."""
         entered = outside and not self._outside[key]
@@ -139,6 +177,9 @@ class MreIsolator(Fmi2Slave):
         return entered
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return False
         x, v, i = self.x, self.v, self.i
         if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(i)):
             name, value = next((n, val) for n, val in (("x", x), ("v", v), ("i", i)) if not math.isfinite(val))
@@ -152,7 +193,7 @@ class MreIsolator(Fmi2Slave):
             return True  # no range entered or left: nothing to say (the usual step)
         if self._entered("identified", identified):
             self.log(f"|x| = {ax * 1e3:.3g} mm left the identified range {self.x_identified * 1e3:.3g} mm "
-                     f"at t = {t:.6g} s: the model is extrapolated", Fmi2Status.warning)
+                     f"at t = {t:.6g} s: {self._beyond_text()}", Fmi2Status.warning)
         if self._entered("limit", limit):
             self.log(f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
                      Fmi2Status.warning)

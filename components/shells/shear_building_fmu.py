@@ -7,6 +7,17 @@ acceleration, arel_j [m/s^2] relative acceleration; per storey j >= 1: drift_j [
 shear_j [N]. Displacements, velocities, drifts and shears are states (no direct
 feedthrough); accelerations depend directly on ag and F.
 
+Storeys may yield (docs/structures.md): the String parameter ``hysteresis`` is 'linear'
+(default: the exact-ZOH linear model, unchanged), 'bilinear' (OpenSees Steel01 without
+isotropic hardening, E0 = k_j, Fy = fy_j, b = b_j) or 'bouc-wen' (Wen 1976, exponent n_j,
+one pair bw_beta, bw_gamma for all storeys). Per storey j >= 1: fy_j [N], b_j [1], n_j [1];
+``substeps`` Newmark sub-steps per communication step. Out-of-range values are refused at
+the end of initialization (before any step), naming the parameter. ``p_delta`` with storey
+heights ``h_j`` [m] adds the linearised P-Delta stiffness -P_j/h_j (P_j: weight of floors j..n).
+``residual_drift_j`` [m]
+(drift_j - f_j / k_j, the plastic offset; 0 for linear storeys) are FMI *local* variables:
+readable by any importer, not outputs, so that ``outputs: all`` records what it recorded before.
+
 The number of storeys is fixed at build time (``N_STOREYS``, the build step renders
 variants under their own module names).
 """
@@ -18,17 +29,30 @@ import math
 import operator
 import sys
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 try:
-    from shear_building_core import BuildingParams
+    from shear_building_core import (
+        HYSTERESIS_LAWS,
+        BuildingParams,
+        ConvergenceError,
+        HystereticShearBuilding,
+        StoreyLaws,
+        make_building,
+    )
     from shear_building_core import ShearBuilding as BuildingModel
 except ImportError as exc:  # the host's Python lacks a package: say which (the build's logging shim shows it)
     raise ImportError(f"the ShearBuilding unit needs the Python packages numpy and scipy in the host's "
                       f"interpreter ({sys.executable}): {exc}") from exc
 
 N_STOREYS = 3
+# Defaults of the yielding storeys (used only when hysteresis is not 'linear'): the values of
+# scenarios/kobe_yielding.yaml, see docs/structures.md.
+DEFAULT_FY_DYKE = (3300.0, 3700.0, 3200.0)  # N, storeys 1..3: half the 0 A linear Kobe x0.5 peak shears
+DEFAULT_FY = 3200.0  # N, every storey of a variant with another storey count
+DEFAULT_B = 0.05  # post-yield stiffness ratio
+DEFAULT_N = 2.0  # Bouc-Wen exponent
 FMU_CORE_MODULES = ("shear_building_core",)
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
@@ -50,7 +74,16 @@ class ShearBuilding(Fmi2Slave):
         self.m = list(default.m)
         self.k = list(default.k)
         self.c = list(default.c)
-        self._model: BuildingModel | None = None
+        self.hysteresis = "linear"
+        self.fy = [math.nan] + (list(DEFAULT_FY_DYKE) if n == 3 else [DEFAULT_FY] * n)  # index 0 unused
+        self.b = [math.nan] + [DEFAULT_B] * n
+        self.n_exp = [math.nan] + [DEFAULT_N] * n
+        self.bw_beta = 0.5
+        self.bw_gamma = 0.5
+        self.substeps = 4
+        self.p_delta = False
+        self.h = [math.nan] + [0.0] * n  # storey heights [m]; 0: not given (P-Delta refuses it)
+        self._model: BuildingModel | HystereticShearBuilding | None = None
         self._failed = ""
         self._cache_key: tuple | None = None
         self._values: list[float] = []
@@ -93,6 +126,27 @@ class ShearBuilding(Fmi2Slave):
             self.fmi_units[name] = unit
             if name.startswith(("a_", "arel_")):
                 self.fmi_dependencies[name] = ("ag", "F")
+        # Yielding storeys, registered after the outputs: the original value references stay as they were.
+        choices = " or ".join(f"'{h}'" for h in HYSTERESIS_LAWS)
+        self.register_variable(String("hysteresis", description=f"{choices}: storey law for all storeys", **par))
+        for j in range(1, self.n_levels):
+            self._param(f"fy_{j}", self.fy, j, "N", f"yield shear of storey {j} (bilinear, bouc-wen)", par)
+            self._param(f"b_{j}", self.b, j, "1", f"post-yield stiffness ratio of storey {j}, in [0, 1)", par)
+            self._param(f"n_{j}", self.n_exp, j, "1", f"Bouc-Wen exponent of storey {j} (>= 1)", par)
+        self.register_variable(Real("bw_beta", description="Bouc-Wen beta, all storeys", **par))
+        self.register_variable(Real("bw_gamma", description="Bouc-Wen gamma, all storeys", **par))
+        self.fmi_units.update(bw_beta="1", bw_gamma="1")
+        self.register_variable(Integer("substeps", description="Newmark sub-steps per step (yielding storeys)",
+                                       **par))
+        for j in range(1, self.n_levels):
+            name = f"residual_drift_{j}"
+            self.register_variable(Real(name, description=f"residual drift of storey {j}: drift - f/k_{j}",
+                                        causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
+                                        getter=lambda s=j - 1: self._residual(s)))
+            self.fmi_units[name] = "m"
+        self.register_variable(Boolean("p_delta", description="add the linearised P-Delta stiffness -P_j/h_j", **par))
+        for j in range(1, self.n_levels):
+            self._param(f"h_{j}", self.h, j, "m", f"height of storey {j} (P-Delta)", par)
         # The master exchanges the same value references every step: fast paths for them.
         vr = {v.name: v.value_reference for v in self.vars.values()}
         self._ag_F = [vr["ag"], vr["F"]]
@@ -106,11 +160,22 @@ class ShearBuilding(Fmi2Slave):
         self.register_variable(Real(name, description=text, getter=lambda: store[j], setter=setter, **attrs))
         self.fmi_units[name] = unit
 
-    def _building(self) -> BuildingModel | None:
+    def _laws(self) -> StoreyLaws:
+        return StoreyLaws(self.hysteresis, tuple(self.fy[1:]), tuple(self.b[1:]), tuple(self.n_exp[1:]),
+                          self.bw_beta, self.bw_gamma, int(self.substeps), bool(self.p_delta), tuple(self.h[1:]))
+
+    def _residual(self, s: int) -> float:
+        model = self._building()
+        if model is None:
+            return math.nan
+        return float(model.residual_drifts()[s]) if isinstance(model, HystereticShearBuilding) else 0.0
+
+    def _building(self) -> BuildingModel | HystereticShearBuilding | None:
         """The model for the present parameters, or None (logged once) if they are invalid."""
         if self._model is None:
             try:
-                self._model = BuildingModel(BuildingParams(tuple(self.m), tuple(self.k), tuple(self.c)))
+                self._model = make_building(BuildingParams(tuple(self.m), tuple(self.k), tuple(self.c)),
+                                            self._laws())
                 self._failed = ""
             except ValueError as exc:
                 if not self._failed:
@@ -160,6 +225,8 @@ class ShearBuilding(Fmi2Slave):
         super().set_real(vrs, values)
 
     def exit_initialization_mode(self):
+        self._model = None  # String and Integer parameters may have changed since the last build
+        self._failed = ""
         self._building()  # logs invalid parameters; an exception here would be fmi2Fatal
 
     def do_step(self, current_time: float, step_size: float) -> bool:
@@ -173,7 +240,11 @@ class ShearBuilding(Fmi2Slave):
                 Fmi2Status.error,
             )
             return False
-        model.step(self.ag, self.F, step_size)
+        try:
+            model.step(self.ag, self.F, step_size)
+        except ConvergenceError as exc:
+            self.log(f"storey laws did not converge at t = {current_time:.6g} s: {exc}", Fmi2Status.error)
+            return False
         return True
 
     # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added,

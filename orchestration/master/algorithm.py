@@ -450,7 +450,7 @@ class CouplingAlgorithm:
         """Drop from each ``get`` the outputs a later ``get`` of the step overwrites before anything reads them.
 
         Typically a feedthrough output read right after its unit steps and read again, with the
-        end-of-step inputs, by the propagation (the isolator's force): the first read is never
+        end-of-step inputs, by the propagation (a force fed back to the unit that drives it): the first read is never
         used. A ``get`` left with nothing to read is removed, one with fewer outputs gets its
         own handle. The values at the end of the step are the same, with fewer FMI calls.
         """

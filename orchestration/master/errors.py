@@ -69,7 +69,7 @@ class SimulationError(Exception):
 
 
 class UnitCallError(SimulationError):
-    """An FMI call returned discard, error or fatal (translated in one place, orchestration.master.fmu_unit)."""
+    """An FMI call returned discard, error or fatal (translated in one place: fmi_status.check_status)."""
 
     def __init__(self, unit: str, function: str, status: str, time: float | None, log: tuple[str, ...]) -> None:
         self.function = function

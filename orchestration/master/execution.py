@@ -87,12 +87,14 @@ def execute(
     progress_every: int = 1000,
     stop_request: StopRequest | None = None,
     executor: Executor = "auto",
+    after_initialization: Callable[[], None] | None = None,
 ) -> ExecutionResult:
     """Run the algorithm from start to stop [s] with communication step ``step`` [s].
 
     ``executor``: ``python`` steps with :meth:`CouplingAlgorithm.step`; ``native`` runs the
     same program in C (:mod:`orchestration.master.native_stepper`); ``auto`` uses native when it
     can drive the units and falls back to python otherwise. Both give identical results.
+    ``after_initialization()`` is called once the units are initialized (it may raise SimulationError).
     Never leaves a unit allocated, whatever happens.
     """
     n_steps, t_of = time_grid(start, stop, step)
@@ -103,6 +105,8 @@ def execute(
     used, note = "python", ""
     try:
         algorithm.initialize(start, stop)
+        if after_initialization is not None:
+            after_initialization()
         for obs in observers:
             obs.record(0, start)
         native = None

@@ -1,7 +1,7 @@
 """FMI status codes and log messages: the one place where an FMI status becomes an exception.
 
-:func:`check_status` serves FMI 2.0 (:mod:`orchestration.master.fmu_unit`) and FMI 3.0
-(:mod:`orchestration.master.fmu3_unit`) units alike.
+:func:`check_status` serves FMI 2.0 (:mod:`orchestration.master.fmi2_cosim_unit`) and FMI 3.0
+(:mod:`orchestration.master.fmi3_cosim_unit`) units alike.
 """
 
 from __future__ import annotations
@@ -11,6 +11,9 @@ from dataclasses import dataclass
 
 from orchestration.master.errors import UnitCallError
 
+UNIT_LOGGER = "mre_cosim.units"
+"""The :mod:`logging` logger that run sessions report the units' messages to (see
+:func:`orchestration.master.session.run_plan`); nothing is printed unless a handler is attached."""
 STATUS_LABELS = ("ok", "warning", "discard", "error", "fatal", "pending")
 FMI3_STATUS = STATUS_LABELS[:5]  # fmi3Status has no "pending"
 

@@ -24,10 +24,6 @@ library formats ``timeseries.csv`` (:func:`csv_formatter`, used by
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import subprocess
-import tempfile
 from collections.abc import Callable, Sequence
 from ctypes import POINTER, Structure, c_double, c_int64, c_void_p
 from pathlib import Path
@@ -35,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from mre_common import c_compile
 from orchestration.master.algorithm import CouplingAlgorithm, ProgramOp
 from orchestration.master.monitor import Monitor
 
@@ -73,28 +70,18 @@ class _Kernel(Structure):
 _LIBRARY: Any = None
 
 
-def cache_dir() -> Path:
-    """Where the compiled kernel is kept."""
-    return Path(os.environ.get("MRE_COSIM_CACHE") or Path.home() / ".cache" / "mre-cosim")
-
-
 def kernel_library() -> Any:
     """The compiled kernel (compiled on first use; NativeUnavailable if that fails)."""
     global _LIBRARY
     if _LIBRARY is not None:
         return _LIBRARY
-    compiler = os.environ.get("CC", "cc")
     try:
-        folder = cache_dir()
-    except (RuntimeError, KeyError) as exc:  # no home folder to put a cache in
-        raise NativeUnavailable(f"no cache folder for the kernel (set MRE_COSIM_CACHE): {exc}") from None
-    digest = hashlib.sha256(SOURCE.read_bytes() + " ".join((compiler, *CFLAGS)).encode()).hexdigest()[:16]
-    target = folder / f"step_kernel-{digest}.so"
-    if not target.exists():
-        try:
-            _compile(compiler, target)
-        except OSError as exc:  # an unwritable cache folder, a compiler that cannot start
-            raise NativeUnavailable(f"cannot compile the kernel into {target.parent}: {exc}") from None
+        folder = c_compile.cache_dir()
+        target = c_compile.compile_cached(SOURCE, CFLAGS, ("-lm",), name="step_kernel", folder=folder)
+    except (c_compile.NoCacheFolder, c_compile.CompilerMissing, c_compile.CompileFailed) as exc:
+        raise NativeUnavailable(str(exc)) from None
+    except OSError as exc:  # an unwritable cache folder
+        raise NativeUnavailable(f"cannot compile the kernel into {folder}: {exc}") from None
     try:
         # PyDLL: the kernel runs holding the GIL, so a pythonfmu unit's PyGILState_Ensure in each
         # FMI call finds it held instead of taking it back (the loop calls no Python itself).
@@ -132,22 +119,6 @@ def csv_formatter() -> Callable[[np.ndarray], bytes] | None:
         return out[:n].tobytes()
 
     return format_rows
-
-
-def _compile(compiler: str, target: Path) -> None:
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, partial = tempfile.mkstemp(prefix=".step_kernel.", suffix=".so", dir=target.parent)
-    os.close(fd)
-    try:
-        done = subprocess.run([compiler, *CFLAGS, str(SOURCE), "-o", partial, "-lm"],
-                              capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            raise NativeUnavailable(f"compiling {SOURCE.name} with {compiler!r} failed: {done.stderr.strip()}")
-        os.replace(partial, target)  # atomic: a concurrent run sees the whole library or none
-    except FileNotFoundError:
-        raise NativeUnavailable(f"no C compiler {compiler!r} (set CC)") from None
-    finally:
-        Path(partial).unlink(missing_ok=True)
 
 
 def _address(array: Any) -> int:

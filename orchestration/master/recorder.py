@@ -9,7 +9,6 @@ A run that records only Reals writes exactly the bytes it always did.
 
 from __future__ import annotations
 
-import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,9 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from mre_common.atomic_files import atomic_write
+from mre_common.env_settings import env_megabytes
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.graph import Port
-from orchestration.master.runfolder import _atomic
 from orchestration.master.unit import Variable
 
 SPILL_ENV = "MRE_COSIM_SPILL_MB"
@@ -36,11 +36,41 @@ def column_kind(var: Variable) -> str:
 
 def spill_threshold() -> int:
     """Bytes of recorded results above which they live in a file, not in memory (``MRE_COSIM_SPILL_MB``)."""
-    try:
-        mb = float(os.environ.get(SPILL_ENV, "") or DEFAULT_SPILL_MB)
-    except ValueError:
-        mb = DEFAULT_SPILL_MB
-    return int(max(mb, 0.0) * 2**20)
+    threshold = env_megabytes(SPILL_ENV, DEFAULT_SPILL_MB, zero_ok=True)  # 0: always spill; checked at resolve
+    assert threshold is not None
+    return threshold
+
+
+class RowStorage:
+    """The arrays a :class:`Recorder` fills: ``time`` (rows) and ``data`` (rows x columns), NaN until written.
+
+    Larger than :func:`spill_threshold`: memory-mapped files in ``spill_dir``, unlinked as they
+    are created. Otherwise, with ``shared``, anonymous shared memory: a process forked after
+    the storage was made (the plot process) sees the rows the run writes later.
+    """
+
+    def __init__(self, rows: int, cols: int, spill_dir: Path | None = None, shared: bool = False) -> None:
+        self.spilled = spill_dir is not None and rows * (cols + 1) * 8 > spill_threshold()
+        if self.spilled:
+            self.time = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+", shape=(rows,))
+            self.data = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+",
+                                  shape=(rows, max(cols, 1)))[:, :cols]
+            step = ROWS_PER_CHUNK * 20
+            for start in range(0, rows, step):  # NaN marks rows not written yet, a block at a time
+                self.time[start : start + step] = np.nan
+                self.data[start : start + step] = np.nan
+        elif shared:
+            import mmap
+
+            buffer = mmap.mmap(-1, max(rows * (cols + 1) * 8, 8))  # MAP_SHARED | MAP_ANONYMOUS
+            flat = np.frombuffer(buffer, dtype=np.float64, count=rows * (cols + 1))
+            flat.fill(np.nan)
+            self.time = flat[:rows]
+            self.data = flat[rows:].reshape(rows, cols)
+        else:
+            self.time = np.full(rows, np.nan)
+            self.data = np.full((rows, cols), np.nan)
+        self.shared = self.spilled or shared
 
 
 class Recorder:
@@ -54,7 +84,7 @@ class Recorder:
     """
 
     def __init__(self, algorithm: CouplingAlgorithm, ports: Sequence[Port], n_steps: int,
-                 spill_dir: Path | None = None) -> None:
+                 spill_dir: Path | None = None, storage: RowStorage | None = None) -> None:
         self.ports = list(ports)
         self.names = [f"{u}.{v}" for u, v in self.ports]
         self._values = algorithm.values
@@ -67,20 +97,29 @@ class Recorder:
         self._string_slots = [(k, algorithm.typed_slot[p]) for k, p in enumerate(self.ports)
                               if self.kinds[k] == "string"]
         self.strings: dict[int, list[str]] = {k: [] for k, _ in self._string_slots}  # column -> values by row
-        rows, cols = n_steps + 1, len(self.ports)
-        self.spilled = spill_dir is not None and rows * (cols + 1) * 8 > spill_threshold()
-        if self.spilled:
-            self.time = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+", shape=(rows,))
-            self.data = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+",
-                                  shape=(rows, max(cols, 1)))[:, :cols]
-            step = ROWS_PER_CHUNK * 20
-            for start in range(0, rows, step):  # NaN marks rows not written yet, a block at a time
-                self.time[start : start + step] = np.nan
-                self.data[start : start + step] = np.nan
-        else:
-            self.time = np.full(rows, np.nan)
-            self.data = np.full((rows, cols), np.nan)
+        if storage is None:
+            storage = RowStorage(n_steps + 1, len(self.ports), spill_dir)
+        elif storage.data.shape != (n_steps + 1, len(self.ports)):
+            raise ValueError(f"row storage of shape {storage.data.shape} for {n_steps + 1} rows of "
+                             f"{len(self.ports)} columns")
+        self.spilled = storage.spilled
+        self.time = storage.time
+        self.data = storage.data
         self.count = 0  # rows written
+
+    @classmethod
+    def view(cls, ports: Sequence[Port], kinds: Sequence[str], storage: RowStorage, count: int) -> Recorder:
+        """The first ``count`` rows of ``storage`` (numeric columns only) as a recorder to read, not to record
+        with: what a process that shares the storage (the plot process) reads once the run has ended."""
+        if any(kind == "string" for kind in kinds):
+            raise ValueError("a recorder view holds numeric columns only")
+        rec = cls.__new__(cls)
+        rec.ports = list(ports)
+        rec.names = [f"{u}.{v}" for u, v in rec.ports]
+        rec.kinds = list(kinds)
+        rec.strings = {}
+        rec.spilled, rec.time, rec.data, rec.count = storage.spilled, storage.time, storage.data, count
+        return rec
 
     def record(self, k: int, t: float) -> None:
         """Store row k at time t [s]."""
@@ -147,18 +186,20 @@ def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: n
     fast = csv_formatter()
     row = ",".join(["%.12g"] * n_cols) + "\n"
 
-    def write(f) -> None:
-        f.write(",".join(["time", *names]) + "\n")
+    def write(f) -> None:  # bytes: the formatter's ASCII goes to the file as it is, not decoded and encoded again
+        f.write((",".join(["time", *names]) + "\n").encode())
+        part = np.empty((min(ROWS_PER_CHUNK, len(time)), n_cols))
         for start in range(0, len(time), ROWS_PER_CHUNK):  # one block at a time: memory stays small
-            stop = start + ROWS_PER_CHUNK
-            part = np.ascontiguousarray(np.column_stack([np.asarray(time[start:stop], dtype=float),
-                                                         np.asarray(data[start:stop], dtype=float)]))
+            stop = min(start + ROWS_PER_CHUNK, len(time))
+            block = part[: stop - start]
+            block[:, 0] = time[start:stop]
+            block[:, 1:] = data[start:stop]
             if fast is not None:
-                f.write(fast(part).decode("ascii"))
+                f.write(fast(block))
             else:
-                f.write((row * len(part)) % tuple(part.ravel().tolist()))
+                f.write(((row * len(block)) % tuple(block.ravel().tolist())).encode("ascii"))
 
-    _atomic(Path(path), write)
+    atomic_write(Path(path), write, binary=True)
 
 
 def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray, kinds: Sequence[str],
@@ -179,4 +220,4 @@ def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.nd
                     columns.append(np.asarray(data[start:stop, k], dtype=float).tolist())
             f.write("".join(row % values for values in zip(*columns, strict=True)))
 
-    _atomic(path, write)
+    atomic_write(path, write)

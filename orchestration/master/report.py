@@ -1,17 +1,23 @@
-"""Run summary and plots, from the recorded time series and the scenario's ``report`` roles.
+"""Run summary and figures, generic: every recorded variable's peak, plus what the application's hook adds.
 
-The master knows no physics; the scenario says which recorded variable plays which role
-(base displacement, drifts, floor accelerations, current, isolator force, ground
-acceleration), how to name variables for a reader (``labels``) and what the run is
-(``caption``, filled from the run's parameter values), and this module turns them into
-the peaks engineers read, a generic peak table of every recorded variable, and figures
-that say what was run.
+The engine knows variables only. A scenario's ``report`` section names the run for a reader
+(``caption``, filled from the run's parameter values, and ``labels``);
+the application may add keys of its own to that section and a :class:`ReportHook` that turns
+them into entries of ``summary.json`` and into figures (drawn with :class:`Figures`, which
+titles each with the caption and keeps every peak of a decimated line).
 """
 
 from __future__ import annotations
 
-import itertools
+import json
+import logging
+import os
 import re
+import signal
+import sys
+import threading
+import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,74 +28,34 @@ from orchestration.master.recorder import Recorder
 from orchestration.master.scenario import ReportSpec
 from orchestration.master.yaml_source import DataFile
 
-# Defaults when the scenario names no displacement limits: the isolator model was
-# identified on +-8 mm and the device allows 15 mm (paper, section 2).
-IDENTIFIED_RANGE_M = 0.008
-DEVICE_LIMIT_M = 0.015
-
 PLACEHOLDER = re.compile(r"\{([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\}")
 _MAX_POINTS = 4000  # per plotted line: a figure is ~1000 px wide; min/max pairs keep every peak
 
 
-def _peak(x: np.ndarray) -> float | None:
+def peak(x: np.ndarray) -> float | None:
+    """Largest absolute value, or None for an empty series."""
     return float(np.max(np.abs(x))) if len(x) else None
 
 
-def summarize(rec: Recorder, spec: ReportSpec) -> dict[str, Any]:
-    """Peaks per role and per recorded variable (SI units)."""
-    out: dict[str, Any] = {}
-    if spec.base_displacement is not None:
-        x = rec.column(str(spec.base_displacement))
-        out["peak_base_displacement_m"] = _peak(x)
-        out["time_beyond_identified_range_s"] = float(np.sum(np.abs(x) > IDENTIFIED_RANGE_M) * _dt(rec))
-        out["time_beyond_device_limit_s"] = float(np.sum(np.abs(x) > DEVICE_LIMIT_M) * _dt(rec))
-    if spec.drifts:
-        out["peak_drift_m"] = {str(r): _peak(rec.column(str(r))) for r in spec.drifts}
-    if spec.floor_accelerations:
-        out["peak_abs_acceleration_m_s2"] = {str(r): _peak(rec.column(str(r))) for r in spec.floor_accelerations}
-    if spec.current is not None:
-        i = rec.column(str(spec.current))
-        out["peak_current_A"] = float(np.max(i)) if len(i) else None
-        out["mean_current_A"] = float(np.mean(i)) if len(i) else None
-    if spec.isolator_force is not None:
-        out["peak_isolator_force_N"] = _peak(rec.column(str(spec.isolator_force)))
-    if spec.ground_acceleration is not None:
-        ag = rec.column(str(spec.ground_acceleration))
-        out["peak_ground_acceleration_m_s2"] = _peak(ag)
-        window = strong_motion_window(rec.times, ag)
-        if window is not None:
-            out["strong_motion_window_s"] = list(window)
-    out["variables"] = {
-        name: {"max_abs": _peak(rec.data[: rec.count, k]),
-               "min": float(np.min(rec.data[: rec.count, k])) if rec.count else None,
-               "max": float(np.max(rec.data[: rec.count, k])) if rec.count else None}
-        for k, name in enumerate(rec.names) if rec.kinds[k] != "string"
-    }
-    return out
+def summarize(rec: Recorder) -> dict[str, Any]:
+    """The engine's own summary: every recorded numeric variable's peak, minimum and maximum (SI units)."""
+    numeric = [k for k, kind in enumerate(rec.kinds) if kind != "string"]
+    if not rec.count or not numeric:
+        return {"variables": {rec.names[k]: {"max_abs": None, "min": None, "max": None} for k in numeric}}
+    block = rec.data[: rec.count]
+    if len(numeric) != block.shape[1]:
+        block = block[:, numeric]
+    top, low, high = np.max(np.abs(block), axis=0), np.min(block, axis=0), np.max(block, axis=0)  # all columns at once
+    return {"variables": {
+        rec.names[k]: {"max_abs": float(top[j]), "min": float(low[j]), "max": float(high[j])}
+        for j, k in enumerate(numeric)
+    }}
 
 
-def _dt(rec: Recorder) -> float:
+def sample_interval(rec: Recorder) -> float:
+    """The recorded time step [s] (0 with fewer than two samples)."""
     t = rec.times
     return float(t[1] - t[0]) if len(t) > 1 else 0.0
-
-
-def strong_motion_window(t: np.ndarray, ag: np.ndarray) -> tuple[float, float] | None:
-    """Time window [s] holding the strong motion and the response right after it.
-
-    The significant duration D5-95 (from 5 % to 95 % of the Arias intensity, the
-    cumulative integral of ag²), widened by a quarter of D before and half of D after
-    (the structure keeps moving after the ground calms down). None without motion.
-    """
-    if len(t) < 3:
-        return None
-    energy = np.cumsum(np.asarray(ag, dtype=float) ** 2)
-    if not np.isfinite(energy[-1]) or energy[-1] <= 0:
-        return None
-    energy /= energy[-1]
-    t5 = float(t[np.searchsorted(energy, 0.05)])
-    t95 = float(t[min(np.searchsorted(energy, 0.95), len(t) - 1)])
-    d = max(t95 - t5, float(t[1] - t[0]))
-    return max(float(t[0]), t5 - 0.25 * d), min(float(t[-1]), t95 + 0.5 * d)
 
 
 @dataclass(frozen=True)
@@ -145,70 +111,91 @@ def caption(spec: ReportSpec, run: RunDescription, name: str) -> str:
     return run.render(spec.caption) if spec.caption else name
 
 
-def displacement_limits(spec: ReportSpec, run: RunDescription) -> dict[str, float]:
-    """Named displacement limits [m] for the hysteresis plot (values or ``unit.param`` references)."""
-    if not spec.displacement_limits:
-        return {"identified range": IDENTIFIED_RANGE_M, "device limit": DEVICE_LIMIT_M}
-    out = {}
-    for label, ref in spec.displacement_limits.items():
-        value = ref if isinstance(ref, int | float) else run.value(*str(ref).split(".", 1))
-        if isinstance(value, int | float) and not isinstance(value, bool) and value > 0:
-            out[label] = float(value)
-    return out
-
-
 def decimate(t: np.ndarray, y: np.ndarray, max_points: int = _MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
-    """At most ``max_points`` points that keep every bucket's minimum and maximum (so every peak shows)."""
+    """At most ``max_points`` points that keep every bucket's minimum and maximum (so every peak shows).
+
+    The buckets are ``max_points // 2`` near-equal runs of samples; within each, the first
+    minimum and the first maximum are kept (the first NaN, if there is one, as numpy's argmin and
+    argmax take it), all buckets at once.
+    """
     n = len(t)
     if n <= max_points:
         return t, y
     buckets = max_points // 2
     edges = np.linspace(0, n, buckets + 1).astype(np.intp)
-    keep = []
-    for lo, hi in itertools.pairwise(edges):
-        if hi > lo:
-            seg = y[lo:hi]
-            a, b = lo + int(np.argmin(seg)), lo + int(np.argmax(seg))
-            keep.extend((a, b) if a <= b else (b, a))
-    idx = np.unique(np.asarray(keep, dtype=np.intp))
+    lo, hi = edges[:-1], edges[1:]
+    lo, hi = lo[hi > lo], hi[hi > lo]
+    if not len(lo):
+        return t[:0], y[:0]
+    index = lo[:, None] + np.arange(int(np.max(hi - lo)))
+    outside = index >= hi[:, None]  # the padding of the shorter buckets, at their ends
+    values = np.asarray(y)[np.minimum(index, n - 1)]
+    first_min = np.argmin(np.where(outside, np.inf, values), axis=1)
+    first_max = np.argmax(np.where(outside, -np.inf, values), axis=1)
+    idx = np.unique(np.concatenate([lo + first_min, lo + first_max]))
     return t[idx], y[idx]
 
 
-def plot(rec: Recorder, spec: ReportSpec, folder: Path, name: str, run: RunDescription) -> list[Path]:
-    """PNG figures for the roles present: top-floor acceleration with the ground, drifts, current, hysteresis.
+class Figures:
+    """Figures of one run, saved as PNG into its folder: titled with the run's caption, lines decimated.
 
-    Each figure is titled with the run's caption. Time histories show the strong-motion
-    window large and the whole record below it (window shaded) when the scenario names the
-    ground acceleration; displacements and drifts are drawn in mm, as engineers read them.
+    ``time_figure`` draws time histories; with a ``window`` (a time span [s] the application
+    picks) the window is drawn large and the whole run below it, the window shaded.
     """
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    def __init__(self, folder: Path, head: str, share: tuple[int, int] = (0, 1)) -> None:
+        import matplotlib
 
-    t = rec.times
-    made: list[Path] = []
-    head = caption(spec, run, name)
-    window = None
-    if spec.ground_acceleration is not None:
-        window = strong_motion_window(t, rec.column(str(spec.ground_acceleration)))
-        if window is not None and window[1] - window[0] > 0.8 * (t[-1] - t[0]):
-            window = None  # the record is nearly all strong motion: one panel
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
 
-    def save(fig, file: str) -> None:
-        path = folder / file
-        tmp = folder / f".{file}.tmp.png"
+        self.plt = plt
+        self.folder = Path(folder)
+        self.head = head  # the caption, first line of every title
+        self.made: list[Path] = []
+        self.share = share  # (k, n): this process writes the k-th, (k+n)-th, ... figure (see PlotProcess)
+        self._turns = 0
+
+    def _my_turn(self) -> bool:
+        """Whether the next figure is this process's to write (figures take turns in the order the hook makes
+        them with :meth:`time_figure`, or saves them when it made them itself)."""
+        k, n = self.share
+        turn, self._turns = self._turns, self._turns + 1
+        return turn % n == k
+
+    def save(self, fig: Any, file: str) -> None:
+        """Write ``fig`` as ``file`` in the run folder (through a temporary name) and close it.
+
+        With a ``share`` (k, n), only every n-th figure from the k-th is written (other
+        processes write the others); the rest are closed unrendered.
+        """
+        mine = getattr(fig, "_mre_cosim_mine", None)
+        if not (self._my_turn() if mine is None else mine):
+            self.plt.close(fig)
+            return
+        path = self.folder / file
+        tmp = self.folder / f".{file}.tmp.png"
         fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        plt.close(fig)
+        self.plt.close(fig)
         tmp.replace(path)
-        made.append(path)
+        self.made.append(path)
 
-    def time_figure(title: str, ylabel: str, lines: list[tuple[np.ndarray, str, dict[str, Any]]]):
+    def time_figure(self, t: np.ndarray, title: str, ylabel: str,
+                    lines: list[tuple[np.ndarray, str, dict[str, Any]]],
+                    window: tuple[float, float] | None = None, window_note: str = "") -> Any:
+        """A figure of time histories ``(values, label, plot style)`` over ``t`` [s].
+
+        A figure another process writes (``share``) comes back with its axes but nothing drawn on them.
+        """
+        plt = self.plt
         if window is None:
             fig, ax = plt.subplots(figsize=(9, 3.4))
             axes = [ax]
         else:
             fig, axes = plt.subplots(2, 1, figsize=(9, 4.6), gridspec_kw={"height_ratios": [3, 1]})
+        fig._mre_cosim_mine = self._my_turn()
+        if not fig._mre_cosim_mine:
+            return fig
         for k, ax in enumerate(axes):
             mask = slice(None)
             if window is not None and k == 0:
@@ -216,12 +203,13 @@ def plot(rec: Recorder, spec: ReportSpec, folder: Path, name: str, run: RunDescr
             for y, label, style in lines:
                 ax.plot(*decimate(t[mask], y[mask]), label=label, **({"lw": 0.7} | style))
             ax.grid(alpha=0.3)
-        axes[0].set(ylabel=ylabel, title=f"{head}\n{title}")
+        axes[0].set(ylabel=ylabel, title=f"{self.head}\n{title}")
         axes[-1].set(xlabel="time [s]")
         if window is not None:
             axes[0].set_xlim(*window)
-            axes[0].text(0.995, 0.02, f"strong motion {window[0]:.1f}-{window[1]:.1f} s (Arias 5-95 %, widened)",
-                         transform=axes[0].transAxes, ha="right", va="bottom", fontsize=7, color="0.35")
+            if window_note:
+                axes[0].text(0.995, 0.02, window_note, transform=axes[0].transAxes, ha="right", va="bottom",
+                             fontsize=7, color="0.35")
             axes[1].axvspan(*window, color="0.85", zorder=0)
             axes[1].set_xlim(t[0], t[-1])
             axes[1].set_title("whole record (shaded: window above)", fontsize=8, loc="left")
@@ -230,34 +218,207 @@ def plot(rec: Recorder, spec: ReportSpec, folder: Path, name: str, run: RunDescr
         fig.tight_layout()
         return fig
 
-    if spec.floor_accelerations:
-        top = str(spec.floor_accelerations[-1])
-        lines = []
-        if spec.ground_acceleration is not None:
-            ground = str(spec.ground_acceleration)
-            lines.append((rec.column(ground), f"{run.label(ground)}", {"color": "0.6", "lw": 0.6}))
-        lines.append((rec.column(top), run.label(top), {"color": "C0"}))
-        save(time_figure(f"absolute acceleration: {run.label(top)}", "acceleration [m/s²]", lines),
-             "top_floor_acceleration.png")
-    if spec.drifts:
-        lines = [(1e3 * rec.column(str(r)), run.label(str(r)), {}) for r in spec.drifts]
-        save(time_figure("inter-storey drifts", "drift [mm]", lines), "drifts.png")
-    if spec.current is not None:
-        ref = str(spec.current)
-        save(time_figure(f"command: {run.label(ref)}", "current [A]", [(rec.column(ref), run.label(ref), {})]),
-             "current.png")
-    if spec.isolator_force is not None and spec.base_displacement is not None:
-        fig, ax = plt.subplots(figsize=(6, 4.6))
-        x_ref, f_ref = str(spec.base_displacement), str(spec.isolator_force)
-        ax.plot(1e3 * rec.column(x_ref), rec.column(f_ref), lw=0.4)
-        styles = iter([("0.5", "--"), ("C3", ":"), ("C2", "-.")])
-        for label, edge in displacement_limits(spec, run).items():
-            color, ls = next(styles, ("0.3", ":"))
-            for sign in (1, -1):
-                ax.axvline(sign * 1e3 * edge, color=color, ls=ls, lw=0.9, label=f"{label} ±{1e3 * edge:g} mm"
-                           if sign == 1 else None)
-        ax.set(xlabel=f"{run.label(x_ref)} [mm]", ylabel=f"{run.label(f_ref)} [N]", title=f"{head}\nhysteresis")
-        ax.legend(fontsize=7, loc="upper left")
-        ax.grid(alpha=0.3)
-        save(fig, "isolator_hysteresis.png")
-    return made
+
+@dataclass(frozen=True)
+class ReportHook:
+    """An application's part of the report: the keys it reads in ``report:``, what it adds to the summary, figures.
+
+    ``model``: the ``report`` section's model, a subclass of
+    :class:`~orchestration.master.scenario.ReportSpec` (its unknown keys are refused with file and
+    line; every :class:`~orchestration.master.scenario.VariableRef` field is checked as an output
+    and recorded). ``summarize(spec, recorder, run)`` returns entries for ``summary.json``
+    (placed after the engine's run status and before its ``variables`` table; they may not
+    replace the engine's keys). ``plot(spec, recorder, run, figures)`` draws figures with
+    :class:`Figures` (``figures.save(fig, "name.png")``). ``spec`` is the section as ``model``
+    read it, ``run`` the :class:`RunDescription`.
+    """
+
+    model: type[ReportSpec] = ReportSpec
+    summarize: Callable[[Any, Recorder, RunDescription], dict[str, Any]] | None = None
+    plot: Callable[[Any, Recorder, RunDescription, Figures], None] | None = None
+
+
+def plot(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, folder: Path, name: str,
+         run: RunDescription, share: tuple[int, int] = (0, 1)) -> list[Path]:
+    """The application's figures of a run (none without a hook that draws): the PNG files written (with a
+    ``share`` (k, n), those of the k-th of n processes drawing them: :class:`Figures`)."""
+    if hook is None or hook.plot is None:
+        return []
+    figures = Figures(folder, caption(spec, run, name), share)
+    hook.plot(spec, rec, run, figures)
+    return figures.made
+
+
+def report_summary(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, run: RunDescription,
+                   reserved: set[str] | frozenset[str] = frozenset()) -> dict[str, Any]:
+    """The application's summary entries (without ``reserved`` keys), then the engine's ``variables`` table."""
+    added = hook.summarize(spec, rec, run) if hook is not None and hook.summarize is not None else {}
+    generic = summarize(rec)
+    return {k: v for k, v in added.items() if k not in reserved and k not in generic} | generic
+
+
+class PlotFailed(OSError):
+    """The plot process could not draw the figures (an :class:`OSError`: the run reports it as a file it could not
+    write, and keeps its other results)."""
+
+
+def prepare_plotting() -> None:
+    """Import what :class:`Figures` needs (matplotlib with the Agg backend, pyplot, PIL's image plugins), ahead of
+    drawing."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot
+    from PIL import Image
+
+    Image.preinit()  # savefig's PNG writer would load PIL's plugins on the first figure
+
+
+class PlotProcess:
+    """A run's figures drawn by forked processes, beside the run's other writing.
+
+    :meth:`start` forks before the run: each child imports matplotlib while the units step,
+    then waits. :meth:`draw` tells them how many rows were recorded (the rows themselves are
+    in storage all processes share, :class:`~orchestration.master.recorder.RowStorage`); they
+    draw while the caller writes ``timeseries.csv``, each every n-th figure (``draw(rows,
+    (k, n))``). :meth:`wait` returns the PNG files, or raises :class:`PlotFailed` (also when a
+    child died). The children ignore SIGINT and SIGTERM (the run decides when to stop) and
+    exit when the caller closes its end without a count (:meth:`cancel`, or the caller's death).
+    """
+
+    def __init__(self, children: list[tuple[int, int, int]]) -> None:
+        self._children = children  # (pid, go pipe, result pipe) per child
+
+    @staticmethod
+    def available() -> bool:
+        """Forking is safe here: Linux and one thread (a fork copies no other thread, nor locks it might hold)."""
+        return sys.platform.startswith("linux") and threading.active_count() == 1
+
+    @classmethod
+    def start(cls, draw: Callable[[int, tuple[int, int]], list[Path]],
+              processes: int | None = None) -> PlotProcess | None:
+        """Fork ``processes`` children (default: 2, or 1 on one CPU), the k-th of which will call
+        ``draw(rows, (k, processes))``; None where forking is not available."""
+        if not cls.available():
+            return None
+        processes = processes or max(1, min(2, os.cpu_count() or 1))
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()  # nothing buffered before the fork is written twice
+            except (AttributeError, OSError, ValueError):
+                pass
+        children = []
+        for k in range(processes):
+            go_read, go_write = os.pipe()
+            result_read, result_write = os.pipe()
+            pid = os.fork()
+            if pid == 0:  # a child: never returns into the caller's code
+                code = 1
+                try:
+                    for _, go, result in children:  # the earlier children's pipes
+                        os.close(go)
+                        os.close(result)
+                    os.close(go_write)
+                    os.close(result_read)
+                    code = _plot_child(lambda rows, k=k: draw(rows, (k, processes)), go_read, result_write)
+                finally:
+                    os._exit(code)
+            os.close(go_read)
+            os.close(result_write)
+            children.append((pid, go_write, result_read))
+        return cls(children)
+
+    def draw(self, rows: int) -> None:
+        """Draw the figures of the first ``rows`` rows (the children start at once)."""
+        for _, go, _ in self._children:
+            if go >= 0:
+                try:
+                    os.write(go, str(rows).encode())
+                except OSError:
+                    pass  # a child that died: wait() says so
+        self._close_go()
+
+    def cancel(self) -> None:
+        """No figures: the children exit."""
+        self._close_go()
+        self._reap()
+
+    def wait(self) -> list[Path]:
+        """The PNG files written, once every child is done; :class:`PlotFailed` if any could not draw its figures."""
+        self._close_go()
+        answers = []
+        for _, _, result in self._children:
+            chunks = []
+            while chunk := os.read(result, 65536):
+                chunks.append(chunk)
+            try:
+                answers.append(json.loads(b"".join(chunks) or b"null"))
+            except ValueError:
+                answers.append(None)
+        statuses = self._reap()
+        files, errors = [], []
+        for answer, status in zip(answers, statuses, strict=True):
+            if not isinstance(answer, dict):
+                errors.append(f"a plot process ended without an answer ({_exit_text(status)})")
+            elif "error" in answer:
+                if answer.get("traceback"):
+                    logging.getLogger("mre_cosim.report").debug("a plot process: %s", answer["traceback"])
+                errors.append(answer["error"])
+            else:
+                files += answer["files"]
+        if errors:
+            raise PlotFailed("; ".join(dict.fromkeys(errors)))
+        return [Path(p) for p in files]
+
+    def __del__(self) -> None:  # dropped without draw, cancel or wait (an exception in the run): the children exit
+        try:
+            self.cancel()
+        except OSError:
+            pass
+
+    def _close_go(self) -> None:
+        for _, go, _ in self._children:
+            if go >= 0:
+                os.close(go)
+        self._children = [(pid, -1, result) for pid, _, result in self._children]
+
+    def _reap(self) -> list[int]:
+        statuses = []
+        for pid, _, result in self._children:
+            if result >= 0:
+                os.close(result)
+            statuses.append(os.waitpid(pid, 0)[1] if pid > 0 else 0)
+        self._children = [(0, -1, -1) for _ in self._children]
+        return statuses
+
+
+def _exit_text(status: int) -> str:
+    if os.WIFSIGNALED(status):
+        return f"killed by {signal.Signals(os.WTERMSIG(status)).name}"
+    return f"exit code {os.WEXITSTATUS(status)}"
+
+
+def _plot_child(draw: Callable[[int], list[Path]], go: int, result: int) -> int:
+    """The plot process: import, wait for the row count, draw, answer ``{"files": [...]}`` or ``{"error": text}``."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    try:
+        prepare_plotting()
+    except Exception:  # drawing reports it
+        pass
+    chunks = []
+    while chunk := os.read(go, 64):
+        chunks.append(chunk)
+    if not chunks:
+        return 0  # cancelled
+    try:
+        answer: dict[str, Any] = {"files": [str(p) for p in draw(int(b"".join(chunks)))]}
+    except OSError as exc:
+        answer = {"error": exc.strerror or str(exc)}
+    except BaseException as exc:  # reported to the run, which keeps its other results
+        last = traceback.format_exception_only(exc)[-1].strip()
+        answer = {"error": f"the figures could not be drawn ({last})", "traceback": traceback.format_exc()}
+    data = json.dumps(answer).encode()
+    while data:
+        data = data[os.write(result, data):]
+    return 0

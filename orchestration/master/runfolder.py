@@ -6,13 +6,15 @@ import functools
 import hashlib
 import json
 import os
-import tempfile
 import uuid
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 from typing import Any
+
+from mre_common.atomic_files import atomic_write, atomic_write_text
+from mre_common.folder_claim import claim_folder
 
 
 class RunFolderExists(FileExistsError):
@@ -37,22 +39,13 @@ def _claim(folder: Path, created: bool) -> None:
     """Create the marker exclusively; on failure remove a folder this run created and raise."""
     info = {"tool": "mre-cosim run", "pid": os.getpid(), "started": datetime.now(UTC).isoformat(),
             "run_id": uuid.uuid4().hex}
-    marker = folder / RUN_MARKER
     try:
-        fd = os.open(marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        claim_folder(folder, RUN_MARKER, info)  # on a failed write the marker is removed again
     except FileExistsError:
         raise RunFolderExists(
             f"{folder} exists and is not empty (claimed by another run): choose another --out (nothing was written)"
         ) from None
     except OSError as exc:
-        _remove_created(folder, created)
-        raise RunFolderUnusable(f"{folder}: cannot write the run folder ({_why(exc, folder)}); "
-                                "choose another --out (nothing was written)") from None
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(info, f)
-    except OSError as exc:
-        marker.unlink(missing_ok=True)
         _remove_created(folder, created)
         raise RunFolderUnusable(f"{folder}: cannot write the run folder ({_why(exc, folder)}); "
                                 "choose another --out (nothing was written)") from None
@@ -154,33 +147,14 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     raise RunFolderExists(f"no free run folder name under {base}")
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _atomic(path: Path, write) -> None:
-    """Write through a temporary file in the same folder, then rename: a file is whole or absent."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            write(f)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_json(path: Path, data: Any) -> None:
     """Write JSON atomically."""
-    _atomic(path, lambda f: json.dump(data, f, indent=2, default=str))
+    atomic_write(path, lambda f: json.dump(data, f, indent=2, default=str))
 
 
 def write_text(path: Path, text: str) -> None:
     """Write text atomically."""
-    _atomic(path, lambda f: f.write(text))
+    atomic_write_text(path, text)
 
 
 def sha256(path: Path) -> str:

@@ -1,26 +1,36 @@
 """Scenario files: YAML parsed into typed objects, every problem reported at once.
 
 A scenario names the units (FMU path, parameters), the connections between them
-(``"building.x_0 -> isolator.x"``), the time grid, what to record and where results go.
+(``"plant.y -> controller.u"``), the time grid, what to record and where results go.
 ``extends: other.yaml`` takes another file as defaults; ``--set KEY=VALUE`` overrides
 any key (``UNIT.PARAM=VALUE`` is short for ``units.UNIT.parameters.PARAM=VALUE``).
 
 Structural checks happen here (unknown keys, wrong types, missing fields); checks that
-need the FMUs' model descriptions are in :mod:`orchestration.master.system`.
+need the FMUs' model descriptions are in :mod:`orchestration.master.resolve`.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
-import os
 import re
 import shutil
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, StrictBool, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializeAsAny,
+    Strict,
+    StrictBool,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
+from mre_common.env_settings import EnvSettingError, env_megabytes
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.yaml_source import DataFile, Lines, apply_override, dotted, load_tree, locate, resolved
 
@@ -169,20 +179,25 @@ class ResultsSpec(_Strict):
 
 
 class ReportSpec(_Strict):
-    """Roles of recorded variables for the run summary and plots (all optional)."""
+    """The ``report`` section: what names a run for a reader (caption, labels), and the application's keys.
 
-    base_displacement: VariableRef | None = None
-    drifts: list[VariableRef] = Field(default_factory=list)
-    floor_accelerations: list[VariableRef] = Field(default_factory=list)
-    current: VariableRef | None = None
-    isolator_force: VariableRef | None = None
-    ground_acceleration: VariableRef | None = None
+    The engine knows ``caption`` and ``labels`` only. An application that draws figures or adds
+    to the summary (:class:`~orchestration.master.report.ReportHook`) declares its own keys in a
+    subclass of this model (which refuses unknown keys). Loaded without the application's model,
+    this section keeps other keys as they are (``model_extra``) until
+    :func:`~orchestration.master.resolve.resolve` checks them against the application's model
+    (and refuses them as unknown keys when there is none).
+
+    Every field of a subclass holding a :class:`VariableRef` (or a list of them) names a recorded
+    variable: it is checked as an output of its unit and always recorded.
+    """
+
+    model_config = ConfigDict(extra="allow")
+
     caption: str = Field("", description="what was run, for every figure: {unit.param} is filled with the "
                                          "run's value (e.g. '{ground.record} x{ground.scale}')")
     labels: dict[str, str] = Field(default_factory=dict, description="readable names: 'unit.variable' or "
                                                                       "'unit.param=value' -> text")
-    displacement_limits: dict[str, Number | str] = Field(
-        default_factory=dict, description="named limits [m] drawn on the hysteresis plot: a value or 'unit.param'")
 
     @field_validator("labels")
     @classmethod
@@ -191,32 +206,35 @@ class ReportSpec(_Strict):
             VariableRef.parse(key.split("=", 1)[0])
         return value
 
-    @field_validator("displacement_limits")
-    @classmethod
-    def _limit_refs(cls, value: dict[str, Number | str]) -> dict[str, Number | str]:
-        for label, ref in value.items():
-            if isinstance(ref, str):
-                VariableRef.parse(ref)
-            elif not ref > 0:
-                raise ValueError(f"displacement limit {label!r} must be positive, got {ref}")
-        return value
+    def variables(self) -> list[tuple[tuple[str | int, ...], VariableRef]]:
+        """Every recorded variable the section names, with its key (``("sensors", 0)``), in field order."""
+        out: list[tuple[tuple[str | int, ...], VariableRef]] = []
+        for name in type(self).model_fields:
+            value = getattr(self, name)
+            if isinstance(value, VariableRef):
+                out.append(((name,), value))
+            elif isinstance(value, list):
+                out += [((name, k), v) for k, v in enumerate(value) if isinstance(v, VariableRef)]
+        return out
 
-    @field_validator("base_displacement", "current", "isolator_force", "ground_acceleration", mode="before")
-    @classmethod
-    def _one(cls, value: Any) -> Any:
-        return VariableRef.parse(value) if isinstance(value, str) else value
+    def templates(self) -> list[tuple[tuple[str, ...], str]]:
+        """Every text that may name ``{unit.param}``, with its key (checked against the scenario's units).
 
-    @field_validator("drifts", "floor_accelerations", mode="before")
-    @classmethod
-    def _many(cls, value: Any) -> Any:
-        if isinstance(value, list):
-            return [VariableRef.parse(v) if isinstance(v, str) else v for v in value]
-        return value
+        A subclass with more such texts (a ``unit.param`` reference) adds them.
+        """
+        out: list[tuple[tuple[str, ...], str]] = [(("caption",), self.caption)]
+        for key, text in self.labels.items():
+            out += [(("labels", key), text), (("labels", key), "{" + key.split("=", 1)[0] + "}")]
+        return out
 
-    def variables(self) -> list[VariableRef]:
-        """Every variable the report needs."""
-        single = [self.base_displacement, self.current, self.isolator_force, self.ground_acceleration]
-        return [v for v in single if v is not None] + list(self.drifts) + list(self.floor_accelerations)
+
+def variable_refs(value: Any) -> Any:
+    """A ``unit.variable`` text, or a list of them, as VariableRef (for a report model's "before" validator)."""
+    if isinstance(value, str):
+        return VariableRef.parse(value)
+    if isinstance(value, list):
+        return [VariableRef.parse(v) if isinstance(v, str) else v for v in value]
+    return value
 
 
 class LimitsSpec(_Strict):
@@ -244,7 +262,7 @@ class Scenario(_Strict):
     simulation: SimulationSpec
     outputs: Literal["all"] | list[VariableRef] = "all"
     results: ResultsSpec = Field(default_factory=ResultsSpec)
-    report: ReportSpec = Field(default_factory=ReportSpec)
+    report: SerializeAsAny[ReportSpec] = Field(default_factory=ReportSpec)  # dumped with the application's keys
     limits: LimitsSpec = Field(default_factory=LimitsSpec)
 
     @field_validator("name")
@@ -348,29 +366,65 @@ def unknown_key_message(model: type[BaseModel] | None, key: tuple[Any, ...]) -> 
 
 
 def validation_problems(
-    exc: ValidationError, lines: Lines, path: Path, model: type[BaseModel] | None = None
+    exc: ValidationError, lines: Lines, path: Path, model: type[BaseModel] | None = None,
+    prefix: tuple[Any, ...] = (),
 ) -> list[Problem]:
     """Pydantic errors as located problems (file, line, key path), in the tool's wording.
 
-    ``model``: the validated model, for "did you mean" suggestions on unknown keys.
+    ``model``: the validated model, for "did you mean" suggestions on unknown keys; ``prefix``:
+    the key path of what ``model`` validated within the file (``("report",)`` for that section).
     """
     problems = []
     for err in exc.errors():
         loc = tuple(err["loc"])
         # Drop pydantic's internal location parts (union branches, validator names).
         key = tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.startswith("function-"))))
-        file, line = locate(lines, key)
+        file, line = locate(lines, prefix + key)
         message = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             message = unknown_key_message(model, key)
         elif err["type"] == "missing":
             message = "required key is missing"
-        problems.append(Problem(message, dotted(key), file or str(path), line))
+        problems.append(Problem(message, dotted(prefix + key), file or str(path), line))
     return problems
 
 
-def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedScenario:
-    """Read, merge, override and validate a scenario file. Raises ScenarioError with all problems."""
+def read_report(raw: Any, lines: Lines, path: Path,
+                model: type[ReportSpec] = ReportSpec) -> tuple[ReportSpec | None, list[Problem]]:
+    """A ``report`` section (``raw``, from the file) read by the application's ``model``: (it, []) or (None, problems).
+
+    With the engine's own :class:`ReportSpec` (no application model) any key besides
+    ``caption`` and ``labels`` is an unknown key.
+    """
+    try:
+        spec = model.model_validate({} if raw is None else raw)
+    except ValidationError as exc:
+        return None, validation_problems(exc, lines, path, model, ("report",))
+    problems = []
+    for key in spec.model_extra or {}:
+        file, line = locate(lines, ("report", key))
+        problems.append(Problem(unknown_key_message(model, (key,)), dotted(("report", key)), file or str(path), line))
+    return (None, problems) if problems else (spec, [])
+
+
+def check_report(loaded: LoadedScenario,
+                 model: type[ReportSpec] = ReportSpec) -> tuple[ReportSpec | None, list[Problem]]:
+    """The loaded scenario's ``report`` section as ``model`` reads it (see :func:`read_report`)."""
+    spec = loaded.scenario.report
+    if isinstance(spec, model) and not spec.model_extra:
+        return spec, []
+    return read_report(loaded.raw.get("report") if isinstance(loaded.raw, dict) else None, loaded.lines,
+                       loaded.path, model)
+
+
+def load_scenario(path: Path | str, overrides: tuple[str, ...] = (),
+                  report_model: type[ReportSpec] | None = None) -> LoadedScenario:
+    """Read, merge, override and validate a scenario file. Raises ScenarioError with all problems.
+
+    ``report_model``: the application's model of the ``report`` section (its problems are then
+    reported with all others); without it the section's other keys are checked by
+    :func:`~orchestration.master.resolve.resolve` against the application's hooks.
+    """
     path = resolved(path)
     data, lines = load_tree(path)
     data.setdefault("name", _name_from(path.stem))
@@ -378,10 +432,27 @@ def load_scenario(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedSc
     unit_names = set(units) if isinstance(units, dict) else set()
     for assignment in overrides:
         apply_override(data, lines, assignment, unit_names)
+    return validate_scenario(data, lines, path, report_model)
+
+
+def validate_scenario(data: dict[str, Any], lines: Lines, path: Path,
+                      report_model: type[ReportSpec] | None = None) -> LoadedScenario:
+    """A scenario tree (merged and overridden) validated: ScenarioError listing every problem."""
+    problems: list[Problem] = []
+    report = None
+    if report_model is not None:
+        report, problems = read_report(data.get("report"), lines, path, report_model)
+        data_checked = {k: v for k, v in data.items() if k != "report"}
+    else:
+        data_checked = data
     try:
-        scenario = Scenario.model_validate(data)
+        scenario = Scenario.model_validate(data_checked)
     except ValidationError as exc:
-        raise ScenarioError(validation_problems(exc, lines, path, Scenario)) from None
+        problems = validation_problems(exc, lines, path, Scenario) + problems
+    if problems:
+        raise ScenarioError(problems)
+    if report is not None:
+        scenario = scenario.model_copy(update={"report": report})
     return LoadedScenario(scenario, path, lines, data)
 
 
@@ -415,14 +486,15 @@ def result_size_problem(simulation: SimulationSpec, n_recorded: int, results_dir
     """
     rows, cols = simulation.n_steps + 1, n_recorded + 1
     need = rows * cols * (8 + CSV_BYTES_PER_VALUE)
-    text = os.environ.get(MEMORY_ENV, "").strip()
     try:
-        budget = int(float(text) * 2**20) if text else _free_bytes(results_dir)
-    except (ValueError, OverflowError):
+        budget = env_megabytes(MEMORY_ENV, None)
+    except EnvSettingError as exc:
+        return str(exc)
+    source = MEMORY_ENV if budget is not None else f"the free space in {results_dir}; {MEMORY_ENV} sets another budget"
+    if budget is None:
         budget = _free_bytes(results_dir)
     if need <= budget:
         return None
-    source = MEMORY_ENV if text else f"the free space in {results_dir}; {MEMORY_ENV} sets another budget"
     return (f"the run would record {rows:,} samples x {cols} columns (time and {n_recorded} variables), up to "
             f"{_bytes(need)} on disk, more than {_bytes(budget)} ({source}): shorten simulation.stop_time, "
             "lengthen simulation.step, or record fewer variables (outputs: [unit.variable, ...])")

@@ -1,12 +1,13 @@
 """One checked plan run into a run folder: execute, record, write results.
 
-:func:`run_plan` takes a :class:`~orchestration.master.system.SystemPlan` (from
-:func:`~orchestration.master.system.resolve`); loading a scenario file and building the
-project's FMUs is the application's part (:mod:`orchestration.project`, :mod:`orchestration.api`).
+:func:`run_plan` takes a :class:`~orchestration.master.resolve.SystemPlan` (from
+:func:`~orchestration.master.resolve.resolve`); loading a scenario file and building the
+project's FMUs is the application's part (:mod:`orchestration.engine_hooks`, :mod:`orchestration.api`).
 """
 
 from __future__ import annotations
 
+import logging
 import platform
 import sys
 import time
@@ -17,10 +18,11 @@ from typing import Any
 
 from orchestration.master.errors import SimulationError
 from orchestration.master.execution import ExecutionResult, StopRequest, execute
-from orchestration.master.fmi_status import LogRecord
+from orchestration.master.fmi_status import UNIT_LOGGER, LogRecord
 from orchestration.master.monitor import Monitor
-from orchestration.master.recorder import Recorder, write_timeseries
-from orchestration.master.report import RunDescription, caption, plot, summarize
+from orchestration.master.recorder import Recorder, RowStorage, column_kind, write_timeseries
+from orchestration.master.report import PlotProcess, RunDescription, caption, plot, report_summary
+from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import (
     new_run_folder,
     package_versions,
@@ -28,8 +30,12 @@ from orchestration.master.runfolder import (
     sha256,
     write_json,
 )
-from orchestration.master.system import SystemPlan
 from orchestration.master.yaml_source import DataFile
+
+WARNINGS_SHOWN = 20
+"""Warnings of one unit reported at WARNING level; later ones at DEBUG (all are kept in the manifest)."""
+_UNIT_LOG = logging.getLogger(UNIT_LOGGER)
+logging.getLogger(UNIT_LOGGER.split(".")[0]).addHandler(logging.NullHandler())  # silent unless a handler is added
 
 
 @dataclass
@@ -67,6 +73,16 @@ def _typed(fmi_type: str, start: Any) -> Any:
     return start
 
 
+def _checked_hash(plan: SystemPlan, path: Path) -> str | None:
+    """The SHA-256 of an input as it was checked (a plan made without hashes: as it is now)."""
+    if str(path) in plan.input_hashes:
+        return plan.input_hashes[str(path)]
+    try:
+        return sha256(path)
+    except OSError:
+        return None
+
+
 def describe_run(plan: SystemPlan) -> RunDescription:
     """Each unit's parameter values as the run uses them (set in the scenario, else declared), for captions."""
     values = {}
@@ -75,7 +91,25 @@ def describe_run(plan: SystemPlan) -> RunDescription:
                     if v.causality == "parameter" and v.start is not None}
         values[unit] = declared | plan.parameters.get(unit, {})
     names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
-    return RunDescription(values, names, dict(plan.loaded.scenario.report.labels))
+    return RunDescription(values, names, dict(plan.report.labels))
+
+
+def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription) -> tuple[RowStorage | None,
+                                                                                      PlotProcess | None]:
+    """Row storage shared with a forked process that draws the figures when the run ends (:class:`PlotProcess`):
+    it imports matplotlib while the units step and draws while ``timeseries.csv`` is written. ``(None, None)``
+    where that cannot be (no hook that draws, String columns, no safe fork): the figures are drawn in-process."""
+    hook, sc = plan.report_hook, plan.loaded.scenario
+    kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
+    if hook is None or hook.plot is None or "string" in kinds or not PlotProcess.available():
+        return None, None
+    storage = RowStorage(sc.simulation.n_steps + 1, len(plan.recorded), folder, shared=True)
+
+    def draw(rows: int, share: tuple[int, int]) -> list[Path]:
+        return plot(Recorder.view(plan.recorded, kinds, storage, rows), plan.report, hook, folder, sc.name, described,
+                    share)
+
+    return storage, PlotProcess.start(draw)
 
 
 def run_plan(
@@ -85,9 +119,18 @@ def run_plan(
     progress: bool = False,
     stop: StopRequest | None = None,
 ) -> RunOutcome:
-    """Execute a checked plan and write its run folder (partial results if it fails or is stopped)."""
+    """Execute a checked plan and write its run folder (partial results if it fails or is stopped).
+
+    The units' messages go to the ``mre_cosim.units`` logger (:data:`~orchestration.master.fmi_status.UNIT_LOGGER`)
+    as ``[unit] status: message``: a unit's first :data:`WARNINGS_SHOWN` warnings at WARNING, later
+    ones at DEBUG, discard, error and fatal at ERROR; each record carries ``unit`` and
+    ``fmi_status`` attributes. Nothing is printed unless the caller attaches a handler (the
+    command-line tools do). ``progress`` draws a progress bar on stderr.
+    """
     sc = plan.loaded.scenario
     folder = new_run_folder(Path(sc.results.dir), sc.name, out)
+    described = describe_run(plan)
+    storage, plotter = _plot_process(plan, folder, described) if plots else (None, None)  # before any thread
     warnings: dict[str, int] = {name: 0 for name in plan.descriptions}
     messages: list[str] = []
     bar = None
@@ -103,8 +146,11 @@ def run_plan(
         if record.status != "ok":
             text = f"[{unit}] {record.status}: {record.message}"
             messages.append(text)
-            if record.status == "warning" and warnings[unit] <= 20:
-                (bar.write if bar is not None else print)(text, file=sys.stderr)
+            if record.status == "warning":
+                level = logging.WARNING if warnings[unit] <= WARNINGS_SHOWN else logging.DEBUG
+            else:
+                level = logging.ERROR
+            _UNIT_LOG.log(level, "%s", text, extra={"unit": unit, "fmi_status": record.status})
 
     def tick(k: int) -> None:
         if bar is not None:
@@ -112,11 +158,18 @@ def run_plan(
 
     units = plan.create_units(on_log)
     algorithm = plan.create_algorithm(units)
-    recorder = Recorder(algorithm, plan.recorded, sc.simulation.n_steps, spill_dir=folder)
+    recorder = Recorder(algorithm, plan.recorded, sc.simulation.n_steps, spill_dir=folder, storage=storage)
     monitor = Monitor(algorithm, plan.limits)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    def inputs_unchanged() -> None:  # the units have read their FMUs and data: it must be what was checked
+        changed = plan.changed_inputs()
+        if changed:
+            raise SimulationError("input changed between the checks and the units' initialization: "
+                                  + "; ".join(changed), time=sc.simulation.start_time)
+
     result = execute(algorithm, sc.simulation.start_time, sc.simulation.stop_time, sc.simulation.step,
-                     [recorder, monitor], progress=tick, stop_request=stop, executor=sc.simulation.executor)
+                     [recorder, monitor], progress=tick, stop_request=stop, executor=sc.simulation.executor,
+                     after_initialization=inputs_unchanged)
     if bar is not None:
         bar.close()
 
@@ -142,16 +195,19 @@ def run_plan(
             doc.update(complete=False, status=result.status)
         summary["error"] = str(result.error)
 
-    described = describe_run(plan)
+    if plotter is not None and recorder.count <= 1:
+        plotter.cancel()
+    elif plotter is not None:
+        plotter.draw(recorder.count)  # the figures are drawn while the CSV is written
     save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
                                                     recorder.data[: recorder.count], recorder.kinds,
                                                     recorder.strings))
-    if plots and recorder.count > 1:
-        save("plots (*.png)", lambda: plot(recorder, sc.report, folder, sc.name, described))
+    if plots and plotter is None and recorder.count > 1:
+        save("plots (*.png)", lambda: plot(recorder, plan.report, plan.report_hook, folder, sc.name, described))
     run = run_id(folder)
     summary: dict[str, Any] = {
         "scenario": sc.name,
-        "caption": caption(sc.report, described, sc.name),
+        "caption": caption(plan.report, described, sc.name),
         "complete": result.complete,
         "status": result.status,
         "error": str(result.error) if result.error else None,
@@ -163,8 +219,8 @@ def run_plan(
         "executor": result.executor,
         **({"executor_note": result.executor_note} if result.executor_note else {}),
         "unit_warnings": warnings,
-        **summarize(recorder, sc.report),
     }
+    summary |= report_summary(recorder, plan.report, plan.report_hook, described, set(summary))
     manifest = {
         "complete": result.complete,
         "status": result.status,
@@ -174,13 +230,16 @@ def run_plan(
         **({"provenance": plan.provenance} if plan.provenance else {}),
         "scenario_file": str(plan.loaded.path),
         "scenario": _plain(plan.loaded.raw),
-        "fmus": {name: {"path": str(p), "sha256": sha256(p)} for name, p in plan.fmu_paths.items()},
-        "data_files": {key: {"path": str(p), "sha256": sha256(p)} for key, p in plan.data_files.items()},
+        # hashed when checked, and the same after the units read them (inputs_unchanged): what the run played
+        "fmus": {name: {"path": str(p), "sha256": _checked_hash(plan, p)} for name, p in plan.fmu_paths.items()},
+        "data_files": {key: {"path": str(p), "sha256": _checked_hash(plan, p)} for key, p in plan.data_files.items()},
         "python": platform.python_version(),
         "platform": platform.platform(),
         "packages": package_versions(),
         "unit_messages": messages[-200:],
     }
+    if plotter is not None and recorder.count > 1:
+        save("plots (*.png)", plotter.wait)
     if write_errors:
         mark_failed()
     if not save("manifest.json", lambda: write_json(folder / "manifest.json", manifest)):

@@ -3,7 +3,7 @@
 The stepping algorithm sees only :class:`Unit`: ``setup``, ``exit_initialization``,
 ``step``, ``get_real``/``set_real`` on prepared reference sets (the fast path for Real values),
 ``get_values``/``set_values`` for every other type (plain Python values), ``terminate``. The
-FMI-backed implementation is :class:`orchestration.master.fmu_unit.FmuUnit`; tests drive the
+FMI-backed implementation is :class:`orchestration.master.fmi2_cosim_unit.FmuUnit`; tests drive the
 algorithm with fake units that implement the same methods in plain Python.
 """
 
@@ -30,6 +30,8 @@ class Variable:
     description: str = ""
     declared_type: str = ""  # the type as the FMU declares it (FMI 3.0: Float64, Int64, ...); empty: ``type``
     items: tuple[tuple[str, int], ...] = ()  # Enumeration: (item name, value) of its type definition
+    min_value: float | None = None  # declared min (the variable's, else its declared type's), if any
+    max_value: float | None = None  # declared max, if any
 
     @property
     def fmi_type(self) -> str:

@@ -1,0 +1,167 @@
+"""Exit codes, one-line errors and crash logs shared by every command-line tool of the project.
+
+Every tool's ``main(argv)`` runs its work through :func:`guarded`:
+
+* a problem the user can cause and fix (the tool's own error types, given by the tool)
+  is one line on stderr (a ``ScenarioError`` its list of problems) and exit code 2;
+* Ctrl-C or SIGTERM before the tool has anything to save (start-up imports, checking a
+  scenario, building FMUs) is ``interrupted; nothing written`` and exit code 130;
+* anything else is a bug: its traceback goes to a log file in the temporary folder, one
+  line names the exception and that file, and the exit code is 3.
+
+Only the standard library is imported here. A tool run as a script calls
+:func:`quiet_interrupts` right after importing this module, so that Ctrl-C or SIGTERM
+during its start-up imports ends it with the same line and code 130 instead of a
+traceback; :func:`guarded` then restores the usual KeyboardInterrupt. The module lives
+in :mod:`mre_common` so that both layers may use it (``python -m components.build`` too);
+:mod:`orchestration.cli` adds the engine's error types.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from collections.abc import Callable, Sequence
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_BUG = 3
+EXIT_INTERRUPTED = 130
+
+EPILOG_COMMON = ("3 internal error, a bug (one line names the log file with the traceback); 130 interrupted "
+                 "before anything was written")
+"""The end of every tool's exit-code epilog."""
+
+CRASH_DIR_ENV = "MRE_COSIM_CRASH_DIR"
+"""Folder for crash logs (default: the temporary folder)."""
+
+
+class UsageError(Exception):
+    """A problem the user can fix, reported as ``error: <message>`` with exit code 2 (nothing written)."""
+
+
+ErrorTypes = tuple[type[BaseException], ...]
+
+
+def crash_log(prog: str, exc: BaseException, argv: Sequence[str] | None) -> str | None:
+    """Write the traceback of an unexpected error to a new log file; its path, or None if none could be written."""
+    import platform
+    import tempfile
+    import time
+    import traceback
+
+    folder = os.environ.get(CRASH_DIR_ENV) or tempfile.gettempdir()
+    stamp = time.strftime("%Y%m%dT%H%M%S")
+    name = os.path.splitext(os.path.basename(prog))[0].replace(" ", "_")
+    try:
+        fd, path = tempfile.mkstemp(prefix=f"mre-cosim-{name}-crash-{stamp}-", suffix=".log", dir=folder)
+        with os.fdopen(fd, "w", errors="replace") as f:
+            f.write(f"{prog}: internal error (a bug)\n")
+            f.write(f"command: {[sys.executable, *sys.argv] if argv is None else [prog, *argv]}\n")
+            f.write(f"working folder: {os.getcwd()}\n")
+            f.write(f"python {platform.python_version()} on {platform.platform()}\n\n")
+            f.write("".join(traceback.format_exception(exc)))
+    except (OSError, ValueError):
+        return None
+    return path
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of a user-reachable error: ``exc.report()`` when it has one, else ``error: <exc>``."""
+    report = getattr(exc, "report", None)
+    if callable(report):
+        return str(report())
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f"{exc.filename}: " if exc.filename else ""
+        return f"error: {where}{exc.strerror}"
+    text = str(exc).strip() or type(exc).__name__
+    return f"error: {text}"
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _exit_at_startup(signum: int, frame: object) -> None:
+    _print(f"{os.path.basename(sys.argv[0]) or 'mre-cosim'}: interrupted while starting; nothing written")
+    os._exit(EXIT_INTERRUPTED)  # nothing to clean up yet; unwinding half-done imports could print tracebacks
+
+
+def quiet_interrupts() -> None:
+    """Until :func:`guarded` starts, end the process on Ctrl-C or SIGTERM with one line and code 130."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            if signal.getsignal(sig) is not signal.SIG_IGN:  # an ignored signal (nohup, `&`) stays ignored
+                signal.signal(sig, _exit_at_startup)
+        except ValueError:  # not the main thread
+            return
+
+
+def guarded(
+    work: Callable[[list[str] | None], int],
+    argv: list[str] | None,
+    prog: str,
+    user_errors: Callable[[], ErrorTypes] | ErrorTypes = (),
+) -> int:
+    """Run a tool's ``work(argv)`` and map every way it can end to the documented exit code.
+
+    ``user_errors``: the exception types the user can cause (or a function returning them,
+    so that they are imported only when needed); :class:`UsageError` always is one.
+    SIGTERM raises KeyboardInterrupt while ``work`` runs, unless ``work`` installs its own
+    handler (a run does, to stop at a step boundary and keep partial results); the
+    previous handler is restored afterwards.
+    """
+    previous = None
+    try:
+        if signal.getsignal(signal.SIGINT) is _exit_at_startup:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        current = signal.getsignal(signal.SIGTERM)
+        if current is not signal.SIG_IGN:
+            signal.signal(signal.SIGTERM, _interrupt)
+            previous = signal.SIG_DFL if current is _exit_at_startup else current
+    except ValueError:  # not the main thread: leave signals alone
+        previous = None
+    try:
+        return work(argv)
+    except SystemExit:
+        raise  # argparse: --help (0) and usage errors (2)
+    except KeyboardInterrupt:
+        _print(f"{prog}: interrupted; nothing written")
+        return EXIT_INTERRUPTED
+    except BaseException as exc:
+        try:
+            types = user_errors() if callable(user_errors) else user_errors
+        except Exception:
+            types = ()
+        if isinstance(exc, (UsageError, *types)):
+            _print(one_line(exc))
+            return EXIT_USAGE
+        if not isinstance(exc, Exception):
+            raise  # GeneratorExit and other interpreter-level signals
+        log = crash_log(prog, exc, argv)
+        if log is not None:
+            where = f"traceback in {log}"
+        else:
+            import traceback
+
+            where = "no log file could be written:\n" + "".join(traceback.format_exception(exc))
+        _print(f"{prog}: internal error (this is a bug, please report it): {type(exc).__name__}: "
+               f"{_first_line(exc)}; {where}")
+        return EXIT_BUG
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0][:300] if text else "(no message)"
+
+
+def _print(text: str) -> None:
+    try:
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass  # stderr closed: the exit code still tells

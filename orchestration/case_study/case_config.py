@@ -1,0 +1,294 @@
+"""Study configuration (``scenarios/case_study.yaml``): records, strategies, sweep, tuning, reference.
+
+A study runs every record x strategy as a co-simulation through the master. The file is
+read with the project's YAML loader (file and line of every key) and validated with
+pydantic; every problem is reported as a :class:`~orchestration.master.errors.ScenarioError`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from orchestration.case_study.strategies import (
+    SHIPPED,
+    Strategy,
+    StrategyEntry,
+    inline_strategies,
+    read_strategy_file,
+    unknown_strategies,
+)
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.scenario import validation_problems
+from orchestration.master.yaml_source import load_tree
+
+STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")
+UNCONTROLLED = "passive-off"
+SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SweepSpec(_Strict):
+    """Constant currents [A] tried for the best constant current (in-process, per record)."""
+
+    start: float = 0.0
+    stop: float | None = None  # None: i_max
+    step: float = 0.25
+
+    def currents(self, i_max: float) -> list[float]:
+        """The swept currents [A], from start to stop (default i_max) inclusive."""
+        stop = i_max if self.stop is None else self.stop
+        n = round((stop - self.start) / self.step)
+        return [round(self.start + k * self.step, 10) for k in range(n + 1)]
+
+    @model_validator(mode="after")
+    def _check(self) -> SweepSpec:
+        if not self.step > 0:
+            raise ValueError(f"sweep.step must be positive, got {self.step}")
+        if self.start < 0 or (self.stop is not None and self.stop < self.start):
+            raise ValueError("sweep needs 0 <= start <= stop")
+        return self
+
+
+class ObjectiveSpec(_Strict):
+    """J = w_acc a3/a3_off + w_drift d/d_off + penalty max(0, x0/x_limit - 1)
+    + w_saturation s_bound + w_zero s_zero + w_mean_current i_mean/i_max (dimensionless).
+
+    s_bound: share of the run's time with the current at the controller's limit i_max;
+    s_zero: share at 0 A; i_mean: mean current [A]. The current terms are 0 by default (peaks only).
+    """
+
+    w_acc: float = 0.5
+    w_drift: float = 0.5
+    penalty: float = 10.0
+    x_limit: float = 0.015  # m, the isolator's device limit
+    w_saturation: float = 0.0
+    w_zero: float = 0.0
+    w_mean_current: float = 0.0
+
+    @model_validator(mode="after")
+    def _check(self) -> ObjectiveSpec:
+        if min(self.w_acc, self.w_drift, self.penalty, self.w_saturation, self.w_zero, self.w_mean_current) < 0:
+            raise ValueError("objective weights must not be negative")
+        if not self.x_limit > 0:
+            raise ValueError(f"objective.x_limit must be positive, got {self.x_limit}")
+        return self
+
+
+class TuningSpec(_Strict):
+    """How the SOSM gains are tuned (orchestration/case_study/tuning.py); see docs/case_study.md."""
+
+    record: str | list[str] = "elcentro"  # one record, or several: J is then their mean
+    stop_time: float | None = None  # s; None: the record scenario's own stop time (every tuning record)
+    seed: int = 1
+    n_samples: int = 24  # seeded Latin-hypercube samples
+    max_evals: int = 80  # Nelder-Mead evaluations from the best sample
+    # lam [1/s], rho [A/s], theta [m^0.5 s^-1.5], ratio = zeta theta / rho [-]; optional s_release [m/s]: the
+    # release band (not in the paper) is then tuned too, else it stays 0 (the paper's law)
+    bounds: dict[str, tuple[float, float]] = Field(default_factory=lambda: {
+        "lam": (0.5, 50.0), "rho": (1.0, 200.0), "theta": (0.05, 20.0), "ratio": (1.05, 100.0)})
+
+    @property
+    def records(self) -> list[str]:
+        """The tuning records, in order."""
+        return [self.record] if isinstance(self.record, str) else list(self.record)
+
+    @field_validator("record")
+    @classmethod
+    def _record(cls, value: str | list[str]) -> str | list[str]:
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError("tuning.record needs at least one record, each once")
+        return value
+
+    @field_validator("bounds")
+    @classmethod
+    def _bounds(cls, value: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+        if set(value) - {"s_release"} != {"lam", "rho", "theta", "ratio"}:
+            raise ValueError("tuning.bounds needs exactly lam, rho, theta, ratio and optionally s_release")
+        for key, (lo, hi) in value.items():
+            if not 0 < lo < hi:
+                raise ValueError(f"tuning.bounds.{key} needs 0 < low < high, got {lo}, {hi}")
+        if value["ratio"][0] <= 1.0:
+            raise ValueError("tuning.bounds.ratio (zeta*theta/rho) must stay above 1 (Eq. 39)")
+        return value
+
+
+class GainSetSpec(_Strict):
+    """The second SOSM gain set (strategy ``sosm-fig15``): its own current limit, objective and tuning.
+
+    Tuned by ``python orchestration/tune.py STUDY --gain-set sosm-fig15 --force`` into ``gains``.
+    """
+
+    gains: str = "sosm_gains_fig15.yaml"
+    i_max: float = 2.5  # A: the controller's limit (the isolator keeps the study's i_max)
+    objective: ObjectiveSpec = Field(default_factory=lambda: ObjectiveSpec(w_saturation=1.0))
+    tuning: TuningSpec = Field(default_factory=TuningSpec)
+
+    @model_validator(mode="after")
+    def _check(self) -> GainSetSpec:
+        if not (np.isfinite(self.i_max) and self.i_max > 0):
+            raise ValueError(f"fig15.i_max must be positive, got {self.i_max}")
+        return self
+
+
+class BenchmarkSpec(_Strict):
+    """The controller benchmark's criteria (Narasimhan et al. 2006): criteria.csv and its report sections."""
+
+    baseline: str = "passive-off"  # J1...J9 are ratios to this strategy's values
+    second_baseline: str | None = "passive-on"  # the same table normalised by this one too
+    best_constant: str = "best-constant"  # the strategy every other one is judged against
+
+
+class ReferenceSpec(_Strict):
+    """Monolithic Radau reference of the passive strategies (constant currents)."""
+
+    enabled: bool = True
+    rtol: float = 1e-8
+    tolerance: float = 0.25  # largest relative peak error accepted (README, coupling error)
+
+
+class StudySpec(_Strict):
+    """A whole study, as written in the YAML file (paths relative to it)."""
+
+    name: str = "case_study"
+    description: str = ""
+    records: dict[str, str]
+    strategies: list[str] = Field(default_factory=lambda: list(STRATEGIES))  # names of strategy entries
+    strategy_files: list[str] = Field(default_factory=list)  # more strategy files, over the shipped one
+    strategy_definitions: dict[str, StrategyEntry] = Field(default_factory=dict)  # strategies of this file
+    benchmark: BenchmarkSpec | None = None  # criteria.csv and the benchmark's report sections
+    overrides: list[str] = Field(default_factory=list)
+    i_max: float = 3.0
+    paper_current_range: tuple[float, float] = (0.0, 2.5)
+    x_identified: float = 0.008  # m
+    x_limit: float = 0.015  # m
+    gains: str = "sosm_gains.yaml"
+    sweep: SweepSpec = Field(default_factory=SweepSpec)
+    objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
+    tuning: TuningSpec = Field(default_factory=TuningSpec)
+    fig15: GainSetSpec = Field(default_factory=GainSetSpec)  # the second gain set (strategy sosm-fig15)
+    reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
+    workers: int | None = None  # local cluster: worker processes (None: one per core)
+    max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
+    timeout_s: float | None = 1800.0  # per co-simulation process
+    output: str = "studies"
+
+    @model_validator(mode="after")
+    def _check(self) -> StudySpec:
+        if not self.records:
+            raise ValueError("a study needs at least one record")
+        if UNCONTROLLED not in self.strategies:
+            raise ValueError(f"strategies must include {UNCONTROLLED!r}: it is the uncontrolled case of the indices")
+        if len(set(self.strategies)) != len(self.strategies):
+            raise ValueError("strategies are listed twice")
+        if not (np.isfinite(self.i_max) and self.i_max > 0):
+            raise ValueError(f"i_max must be positive, got {self.i_max}")
+        if self.workers is not None and self.workers < 1:
+            raise ValueError("workers must be at least 1")
+        if self.max_worker_deaths < 0:
+            raise ValueError("max_worker_deaths must not be negative")
+        if self.fig15.i_max > self.i_max:
+            raise ValueError(f"fig15.i_max ({self.fig15.i_max} A) must not exceed i_max ({self.i_max} A)")
+        return self
+
+
+class LoadedStudy:
+    """A validated study with its file (paths in it are relative to that file)."""
+
+    def __init__(self, spec: StudySpec, path: Path, raw: dict[str, Any], lines: dict | None = None) -> None:
+        self.spec = spec
+        self.path = path
+        self.raw = raw
+        self.lines = lines or {}
+        self._library: dict[str, Strategy] | None = None
+
+    @property
+    def library(self) -> dict[str, Strategy]:
+        """Every strategy the study may name: the shipped file, its strategy_files, its own definitions."""
+        if self._library is None:
+            library = read_strategy_file(SHIPPED)
+            for f in self.spec.strategy_files:
+                p = Path(f)
+                library.update(read_strategy_file(p if p.is_absolute() else self.path.parent / p))
+            library.update(inline_strategies(self.spec.strategy_definitions, self.path, self.lines,
+                                             "strategy_definitions"))
+            self._library = library
+        return self._library
+
+    def strategy(self, name: str) -> Strategy:
+        """A strategy the study names."""
+        return self.library[name]
+
+    def scenario_path(self, record: str) -> Path:
+        """Scenario file of a record (absolute)."""
+        p = Path(self.spec.records[record])
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    @property
+    def gains_path(self) -> Path:
+        """The SOSM gains file written by the tuning procedure (absolute)."""
+        return self.gain_set_path("sosm")
+
+    def gain_set_path(self, strategy: str) -> Path:
+        """The gains file of an SOSM strategy (``sosm`` or ``sosm-fig15``), absolute."""
+        p = Path(self.spec.gains if strategy == "sosm" else self.spec.fig15.gains)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    def gain_set(self, strategy: str) -> tuple[float, ObjectiveSpec, TuningSpec]:
+        """Controller current limit [A], objective and tuning of an SOSM strategy."""
+        if strategy == "sosm":
+            return self.spec.i_max, self.spec.objective, self.spec.tuning
+        return self.spec.fig15.i_max, self.spec.fig15.objective, self.spec.fig15.tuning
+
+
+def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:
+    """``KEY=VALUE`` (VALUE as YAML) into the study's data; ScenarioError for a malformed one."""
+    for assignment in overrides:
+        key, sep, text = assignment.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(Problem("expected KEY=VALUE", "", f"--set {assignment}"))
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise ScenarioError(Problem(f"value is not YAML: {exc}", key, f"--set {assignment}")) from None
+        node = data
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(Problem(f"'{part}' is not a mapping", key, f"--set {assignment}"))
+        node[parts[-1]] = value
+        lines[tuple(parts)] = (f"--set {assignment}", None)
+
+
+def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy:
+    """Read and validate a study file; ``overrides`` are ``KEY=VALUE`` (VALUE as YAML). Raises ScenarioError."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ScenarioError(f"study file {path} does not exist")
+    data, lines = load_tree(path)
+    apply_overrides(data, lines, overrides)
+    try:
+        spec = StudySpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(validation_problems(exc, lines, path, StudySpec)) from None
+    study = LoadedStudy(spec, path, data, lines)
+    missing = [Problem(f"scenario file {study.scenario_path(r)} does not exist", f"records.{r}", str(path))
+               for r in spec.records if not study.scenario_path(r).is_file()]
+    for k, f in enumerate(spec.strategy_files):
+        p = Path(f) if Path(f).is_absolute() else path.parent / f
+        if not p.is_file():
+            file, line = lines.get(("strategy_files", k), (str(path), None))
+            missing.append(Problem(f"strategy file {p.resolve()} does not exist", f"strategy_files.{k}", file, line))
+    if not missing:
+        missing = unknown_strategies(spec.strategies, study.library, lines, path, "strategies")
+    if missing:
+        raise ScenarioError(missing)
+    return study

@@ -1,0 +1,230 @@
+"""The case study's figures (``figures/``): the paper's Fig. 15-17, the isolator hysteresis per record,
+the constant-current sweep and the second gain set's tuning front. Each function draws one figure."""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
+from orchestration.case_study.case_metrics import Metrics, Series, current_limit, pareto_front
+from orchestration.case_study.case_records import CaseStudyRecord
+
+COLORS = defaultdict(lambda: "tab:gray", {
+    "passive-off": "0.25", "passive-on": "tab:blue", "best-constant": "tab:green", "sosm": "tab:red",
+    "sosm-fig15": "tab:orange", "on-off": "tab:purple", "clipped-optimal": "tab:brown",
+    "clipped-optimal-inverse": "tab:pink", "lyapunov": "tab:olive", "frequency": "tab:cyan"})
+STYLES = defaultdict(lambda: "-", {"passive-off": ":", "passive-on": "--", "best-constant": "-."})
+
+
+def _save(fig: Any, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def named(study: CaseStudyRecord, r: str) -> str:
+    """A record's name with its amplitude scale (``kobe ×0.5``)."""
+    scale = study.records[r].scale
+    return f"{r} ×{scale:g}" if isinstance(scale, int | float) else r
+
+
+def pareto_figure(study: CaseStudyRecord) -> Any:
+    """Peak top-floor acceleration against mean current over the second gain set's tuning evaluations, per tuning
+    record, with the constant currents on the same window; None without evaluations."""
+    from orchestration.case_study.tuning import RECORD_COLUMNS, read_table
+
+    doc = study.gain_sets.get("sosm-fig15") or {}
+    ev = doc.get("evaluations")
+    if not ev:
+        return None
+    import matplotlib.pyplot as plt
+
+    sosm, passive = read_table(ev["sosm"]), read_table(ev["passive"])
+    records = list(dict.fromkeys(c.split(".")[0] for c in ev["sosm"]["columns"] if "." in c
+                                 and c.split(".")[1] in RECORD_COLUMNS))
+    chosen = doc["gains"]
+    proc = doc.get("procedure", {})
+    window = proc.get("stop_time_s")
+    fig, axes = plt.subplots(1, len(records), figsize=(4.2 * len(records), 3.6), squeeze=False)
+    for ax, r in zip(axes[0], records, strict=True):
+        pts = [(row[f"{r}.i_mean"], row[f"{r}.a3"]) for row in sosm]
+        sat = [row[f"{r}.s_bound"] for row in sosm]
+        sc = ax.scatter(*zip(*pts, strict=True), c=sat, cmap="viridis", vmin=0, vmax=1, s=14, label="SOSM evaluations")
+        front = pareto_front(pts)
+        ax.plot([pts[k][0] for k in front], [pts[k][1] for k in front], color="tab:red", lw=1,
+                label="non-dominated")
+        ax.plot([row[f"{r}.i_mean"] for row in passive], [row[f"{r}.a3"] for row in passive], color="0.3",
+                ls="--", marker="s", ms=3, lw=0.8, label="constant current")
+        best = [k for k, row in enumerate(sosm) if row["lambda"] == chosen["lambda"] and row["rho"] == chosen["rho"]]
+        if best:
+            ax.plot(*pts[best[0]], marker="*", ms=14, mfc="none", color="k", label="chosen (sosm-fig15)")
+        ax.set(xlabel="mean current [A]", ylabel="peak top-floor acceleration a_3 [m/s²]", yscale="log",
+               title=f"{r}, first {window:g} s" if window else r)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=6)
+    fig.colorbar(sc, ax=axes[0, -1], label=f"share of time at {chosen['i_max']:g} A")
+    fig.suptitle(f"sosm-fig15 tuning: {len(sosm)} evaluations (objective weights: "
+                 + ", ".join(f"{k} {v:g}" for k, v in proc.get("objective", {}).items() if k.startswith("w_"))
+                 + ")", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def current_figure(study: CaseStudyRecord, series: Series) -> Any:
+    """Fig. 15: the SOSM current per record, one column per gain set; None without an SOSM strategy."""
+    import matplotlib.pyplot as plt
+
+    controlled = [s for s in study.strategies if s in SOSM_STRATEGIES]
+    if not controlled:
+        return None
+    records = list(study.records)
+    i_max, hi = study.config["i_max"], study.config["paper_current_range"][1]
+    fig, axes = plt.subplots(len(records), len(controlled), figsize=(8 * len(controlled) ** 0.5, 1.9 * len(records)),
+                             squeeze=False, sharey=True)
+    for col, s in enumerate(controlled):
+        limit = current_limit(study, s)
+        for ax, r in zip(axes[:, col], records, strict=True):
+            ts = series.get((r, s))
+            if ts is not None:
+                ax.plot(ts["time"], ts["controller.i"], color=COLORS[s], lw=0.6)
+            ax.axhline(hi, color="0.5", ls="--", lw=0.8)
+            ax.axhline(limit, color="0.5", ls=":", lw=0.8)
+            ax.set(ylabel="i [A]", ylim=(-0.1, i_max * 1.08))
+            ax.set_title(f"{named(study, r)}: {s} current (dashed {hi:g} A as in the paper, dotted its limit "
+                         f"{limit:g} A)", fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[-1, col].set_xlabel("time [s]")
+    fig.tight_layout()
+    return fig
+
+
+def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
+    """Fig. 16: the top-floor absolute acceleration per record, passive against SOSM, strong-motion window."""
+    import matplotlib.pyplot as plt
+
+    records = list(study.records)
+    fig, axes = plt.subplots(len(records), 1, figsize=(8, 1.9 * len(records)), squeeze=False)
+    for ax, r in zip(axes[:, 0], records, strict=True):
+        for s in (UNCONTROLLED, "passive-on", *SOSM_STRATEGIES):
+            ts = series.get((r, s))
+            if ts is not None and s in study.strategies:
+                ax.plot(ts["time"], ts["building.a_3"], color=COLORS[s], ls="-",
+                        lw=0.6 if s in SOSM_STRATEGIES else 0.5, alpha=0.8 if s != "passive-on" else 0.6, label=s)
+        ref_ts = series.get((r, UNCONTROLLED))
+        if ref_ts is not None and len(ref_ts["time"]) > 1:
+            a = np.abs(ref_ts["building.a_3"])
+            strong = ref_ts["time"][a > 0.05 * a.max()]
+            if len(strong):
+                ax.set_xlim(0.0, min(ref_ts["time"][-1], strong[-1] + 5.0))
+        ax.set(ylabel="a_3 [m/s²]")
+        ax.set_title(f"{named(study, r)}: top-floor (3rd floor) absolute acceleration, strong-motion window",
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    return fig
+
+
+def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
+    """Fig. 17: peak drift per storey and peak acceleration per level, per record and strategy."""
+    import matplotlib.pyplot as plt
+
+    records = list(study.records)
+    fig, axes = plt.subplots(len(records), 2, figsize=(8, 2.4 * len(records)), squeeze=False)
+    for row, r in enumerate(records):
+        for s in study.strategies:
+            m = metrics.get((r, s))
+            if m is None:
+                continue
+            nd = len([k for k in m if re.fullmatch(r"drift_\d+_mm", k)])
+            axes[row, 0].plot([m[f"drift_{j}_mm"] for j in range(1, nd + 1)], range(1, nd + 1), marker="o",
+                              color=COLORS[s], ls=STYLES[s], label=s)
+            axes[row, 1].plot([m[f"acc_{j}"] for j in range(nd + 1)], range(nd + 1), marker="o", color=COLORS[s],
+                              ls=STYLES[s], label=s)
+        n_levels = len(study.records[r].masses_kg)
+        axes[row, 0].set(ylabel=f"{named(study, r)}\nstorey", xlabel="peak drift [mm]", yticks=range(1, n_levels))
+        axes[row, 1].set(ylabel="level (0 = base)", xlabel="peak abs. acceleration [m/s²]", yticks=range(n_levels))
+        for ax in axes[row]:
+            ax.grid(alpha=0.3)
+    if axes[0, 1].get_legend_handles_labels()[0]:
+        axes[0, 1].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def hysteresis_figure(study: CaseStudyRecord, series: Series, r: str) -> Any:
+    """The isolator force against its displacement, one panel per strategy of record ``r``; None without runs."""
+    import matplotlib.pyplot as plt
+
+    present = [s for s in study.strategies if (r, s) in series]
+    if not present:
+        return None
+    x_id, x_lim = 1e3 * study.config["x_identified"], 1e3 * study.config["x_limit"]
+    fig, axes = plt.subplots(1, len(present), figsize=(3.2 * len(present), 3.0), squeeze=False, sharey=True)
+    for ax, s in zip(axes[0], present, strict=True):
+        ts = series[(r, s)]
+        ax.plot(1e3 * ts["building.x_0"], ts["isolator.F"], color=COLORS[s], lw=0.4)
+        for edge, style in ((x_id, "--"), (x_lim, ":")):
+            ax.axvline(edge, color="0.5", ls=style, lw=0.8)
+            ax.axvline(-edge, color="0.5", ls=style, lw=0.8)
+        ax.set(title=s, xlabel="x_0 [mm]")
+        ax.grid(alpha=0.3)
+    n_iso = study.records[r].n_isolators
+    axes[0, 0].set_ylabel(f"force of the {n_iso} isolators together [N]" if n_iso else "isolator force F [N]")
+    fig.suptitle(f"{named(study, r)}: isolator hysteresis per strategy "
+                 f"(dashed ±{x_id:g} mm identified, dotted ±{x_lim:g} mm limit)",
+                 fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def sweep_figure(study: CaseStudyRecord) -> Any:
+    """The objective J against the constant current per record, the best circled; None without sweeps."""
+    import matplotlib.pyplot as plt
+
+    if not study.sweep:
+        return None
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    for r, sw in study.sweep.items():
+        if not sw.ok:
+            continue
+        line = ax.plot([q["current_A"] for q in sw.rows], [q["J"] for q in sw.rows], marker=".", label=r)[0]
+        ax.plot([sw.best_current_A], [sw.best_J], marker="o", ms=8, mfc="none", color=line.get_color())
+    ax.set(xlabel="constant current [A]", ylabel="objective J", yscale="log",
+           title="constant-current sweep (in-process); circle = best")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series: Series) -> dict[str, Path]:
+    """Every figure into ``folder/figures``; name -> file, in the report's order."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    figdir = folder / "figures"
+    figdir.mkdir(exist_ok=True)
+    draw: list[tuple[str, Callable[[], Any]]] = [
+        ("fig15_current", lambda: current_figure(study, series)), ("pareto", lambda: pareto_figure(study)),
+        ("fig16_top_acceleration", lambda: top_acceleration_figure(study, series)),
+        ("fig17_profiles", lambda: profiles_figure(study, metrics))]
+    draw += [(f"hysteresis_{r}", lambda r=r: hysteresis_figure(study, series, r)) for r in study.records]
+    draw.append(("sweep", lambda: sweep_figure(study)))
+    made: dict[str, Path] = {}
+    for name, figure in draw:  # one figure open at a time
+        fig = figure()
+        if fig is not None:
+            made[name] = _save(fig, figdir / f"{name}.png")
+    return made

@@ -1,0 +1,134 @@
+"""The numbers of a case study: every run's metrics, and the tables peaks.csv, indices.csv, sweep.csv,
+reference.csv, all from the study folder (``study.json`` and the runs' ``timeseries.csv``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestration.case_study.analysis import (
+    INDEX_COLUMNS,
+    PEAK_COLUMNS,
+    csv_text,
+    indices,
+    read_timeseries,
+    run_metrics,
+)
+from orchestration.case_study.case_config import UNCONTROLLED
+from orchestration.case_study.case_records import CaseStudyRecord
+from orchestration.master.runfolder import write_text
+
+REFERENCE_KEYS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "acc_0", "acc_1", "acc_2", "acc_3",
+                  "base_shear_N")
+SWEEP_COLUMNS = ("record", "current_A", "x0", "d", "a3", "J", "best")
+REFERENCE_COLUMNS = ("record", "strategy", "peak", "cosim", "radau", "rel_error")
+
+Metrics = dict[tuple[str, str], dict[str, float]]  # (record, strategy) -> metric -> value
+Series = dict[tuple[str, str], dict[str, np.ndarray]]  # (record, strategy) -> column -> samples
+
+
+def current_limit(study: CaseStudyRecord, strategy: str) -> float:
+    """The controller's current limit [A] of a strategy: the second gain set's own, else the study's i_max."""
+    cfg = study.config
+    if strategy == "sosm-fig15":
+        return float((cfg.get("fig15") or {}).get("i_max", cfg["i_max"]))
+    return float(cfg["i_max"])
+
+
+def current_shares(i: np.ndarray, limit: float, range_top: float) -> dict[str, float]:
+    """Shares of the run's samples with the current at its limit, at 0 A and at or above ``range_top`` [A]
+    (within 1e-6 A: the controller clips to its bounds exactly, the tolerance only absorbs the CSV's printing)."""
+    if not len(i):
+        return {"current_share_at_limit": math.nan, "current_share_at_zero": math.nan,
+                "current_share_at_range_top": math.nan}
+    return {"current_share_at_limit": float(np.mean(i >= limit - 1e-6)),
+            "current_share_at_zero": float(np.mean(i <= 1e-6)),
+            "current_share_at_range_top": float(np.mean(i >= range_top - 1e-6))}
+
+
+def load_metrics(folder: Path, study: CaseStudyRecord) -> tuple[Metrics, Series]:
+    """Metrics and time series of every successful run of a study folder (a run without its time series
+    is marked failed in ``study``)."""
+    metrics: Metrics = {}
+    series: Series = {}
+    for run in study.runs:
+        if not run.ok:
+            continue
+        path = folder / run.folder / "timeseries.csv"
+        if not path.is_file():
+            run.ok = False
+            run.error = f"{path} is missing"
+            continue
+        key = (run.record, run.strategy)
+        series[key] = read_timeseries(path)
+        metrics[key] = m = run_metrics(series[key], study.records[run.record].masses_kg)
+        t, i = series[key]["time"], series[key]["controller.i"]
+        lo, hi = study.config["paper_current_range"]
+        dt = float(t[1] - t[0]) if len(t) > 1 else 0.0
+        m["time_current_outside_paper_range_s"] = float(np.sum((i > hi + 1e-12) | (i < lo - 1e-12)) * dt)
+        limit = current_limit(study, run.strategy)
+        m["current_limit_A"] = limit
+        m.update(current_shares(i, limit, hi))
+    return metrics, series
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points (x, y) no other point dominates (both lower is better), sorted by x."""
+    order = sorted(range(len(points)), key=lambda k: (points[k][0], points[k][1]))
+    front, best_y = [], math.inf
+    for k in order:
+        if points[k][1] < best_y:
+            front.append(k)
+            best_y = points[k][1]
+    return front
+
+
+def peak_and_index_rows(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[dict], list[dict]]:
+    """Rows of peaks.csv and indices.csv; the indices also go into ``study.indices`` (record/strategy)."""
+    peak_rows, index_rows = [], []
+    study.indices = {}
+    for r in study.records:
+        off = metrics.get((r, UNCONTROLLED))
+        for s in study.strategies:
+            m = metrics.get((r, s))
+            if m is None:
+                continue
+            peak_rows.append({"record": r, "strategy": s, **m})
+            if off is not None:
+                idx = indices(m, off)
+                study.indices[f"{r}/{s}"] = idx
+                index_rows.append({"record": r, "strategy": s, **idx})
+    return peak_rows, index_rows
+
+
+def sweep_rows(study: CaseStudyRecord) -> list[dict[str, Any]]:
+    """Rows of sweep.csv: every swept current of every record, the best marked."""
+    return [{"record": r, **q, "best": q["current_A"] == sw.best_current_A}
+            for r, sw in study.sweep.items() if sw.ok for q in sw.rows]
+
+
+def reference_rows(study: CaseStudyRecord, metrics: Metrics) -> list[dict[str, Any]]:
+    """Rows of reference.csv: each passive run's peaks against the Radau reference's."""
+    rows = []
+    for key, v in study.reference.items():
+        r, s = key.split("/")
+        m = metrics.get((r, s))
+        if v.ok and m is not None:
+            for k in REFERENCE_KEYS:
+                rows.append({"record": r, "strategy": s, "peak": k, "cosim": m[k], "radau": v.value[k],
+                             "rel_error": m[k] / v.value[k] - 1 if v.value[k] else math.nan})
+    return rows
+
+
+def write_tables(folder: Path, study: CaseStudyRecord, metrics: Metrics) -> None:
+    """peaks.csv, indices.csv, and sweep.csv and reference.csv if the study has them."""
+    peak_rows, index_rows = peak_and_index_rows(study, metrics)
+    write_text(folder / "peaks.csv", csv_text(PEAK_COLUMNS, peak_rows))
+    write_text(folder / "indices.csv", csv_text(INDEX_COLUMNS, index_rows))
+    if study.sweep:
+        write_text(folder / "sweep.csv", csv_text(SWEEP_COLUMNS, sweep_rows(study)))
+    if study.reference:
+        write_text(folder / "reference.csv", csv_text(REFERENCE_COLUMNS, reference_rows(study, metrics)))

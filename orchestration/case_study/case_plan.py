@@ -1,0 +1,100 @@
+"""A case study checked and planned before anything is written: gain sets, records, every job.
+
+:func:`prepare` checks every record x strategy through the engine's checks (ScenarioError or
+NotMonolithic before a folder exists); :func:`plan_job` turns one job into its content key,
+portable plan and inputs (see :mod:`orchestration.batch.portable`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from components.physics.shear_building_core import BuildingParams
+from orchestration.batch.portable import PortablePlan, job_key, plan_content, portable
+from orchestration.case_study import case_jobs
+from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy
+from orchestration.case_study.case_records import PreparedStudy, RecordInfo
+from orchestration.case_study.strategies import check_strategy
+from orchestration.case_study.tuning import read_gains, run_overrides, system_setup
+from orchestration.engine_hooks import plan_scenario
+from orchestration.master.errors import ScenarioError
+from orchestration.master.yaml_source import load_tree
+
+# One job: its label (record/...), content key, portable plan and the inputs of its payload.
+PlannedJob = tuple[str, str, PortablePlan, dict[str, Any]]
+
+
+def gain_sets(study: LoadedStudy) -> dict[str, dict[str, Any]]:
+    """SOSM strategy -> its gains file's document; ScenarioError if tuned for another current limit."""
+    spec = study.spec
+    sets: dict[str, Any] = {}
+    used = {study.strategy(s).entry.gains for s in spec.strategies}
+    for strategy in (s for s in SOSM_STRATEGIES if s in used):
+        path = study.gain_set_path(strategy)
+        gains, sets[strategy] = read_gains(path)
+        i_max = study.gain_set(strategy)[0]
+        if abs(gains.i_max - i_max) > 1e-12:
+            key = "i_max" if strategy == "sosm" else "fig15.i_max"
+            raise ScenarioError(f"{path}: gains tuned for i_max = {gains.i_max} A, the study's {key} is "
+                                f"{i_max} A: re-run the tuning")
+    return sets
+
+
+def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]]) -> tuple[RecordInfo, Any]:
+    """Plan a record under every kind of controller the study uses; its facts and its last plan."""
+    spec = study.spec
+    path = study.scenario_path(record)
+    base = run_overrides(spec)
+    plans, problems = {}, []
+    for s in sorted({UNCONTROLLED, *(s for s in spec.strategies if s != "best-constant")}):
+        strategy = study.strategy(s)
+        g = sets[strategy.entry.gains]["gains"] if strategy.entry.gains in sets else None
+        try:
+            if strategy.entry.fmu is not None or strategy.entry.connections is not None:
+                check_strategy(strategy, path, base, spec.i_max, g, 0.0)  # problems at the strategy entry's lines
+            plans[s] = plan_scenario(path, (*base, *run_strategy_overrides(study, s, path, spec.i_max, g, 0.0)))
+        except ScenarioError as exc:
+            problems += [p for p in exc.problems if p not in problems]
+    if problems:
+        raise ScenarioError(problems)
+    plan = plans[UNCONTROLLED]
+    sim = plan.loaded.scenario.simulation
+    needs_model = "best-constant" in spec.strategies or spec.reference.enabled
+    setup = system_setup(plan, 0.0) if needs_model else None
+    masses = list(setup.building.m) if setup else list(BuildingParams.dyke().m)
+    ground = plan.parameters.get("ground", {})
+    info = RecordInfo(str(path), sim.stop_time, masses, str(plan.data_files.get("ground.record", "")),
+                      ground.get("scale"), ground.get("time_scale", 1.0),
+                      plan.parameters.get("isolator", {}).get("n_isolators"))
+    return info, plan
+
+
+def prepare(study: LoadedStudy) -> PreparedStudy:
+    """Check every run of the study before anything is written; raises ScenarioError or NotMonolithic."""
+    sets = gain_sets(study)
+    records: dict[str, RecordInfo] = {}
+    algorithms: dict[str, str] = {}
+    step = None
+    for r in study.spec.records:
+        records[r], plan = check_record(study, r, sets)
+        sim = plan.loaded.scenario.simulation
+        algorithms[r], step = sim.algorithm, sim.step
+    return PreparedStudy(records, sets, algorithms, step)
+
+
+def run_strategy_overrides(study: LoadedStudy, strategy: str, scenario: Path, i_max: float,
+                           gains: dict[str, float] | None, best: float | None) -> tuple[str, ...]:
+    """The overrides of one record x strategy run: the controller unit, then its connections if the entry has any."""
+    s = study.strategy(strategy)
+    conns = () if s.entry.connections is None else s.connection_override(
+        list(load_tree(scenario)[0].get("connections") or []))
+    return (*s.overrides(i_max, gains, best), *conns)
+
+
+def plan_job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]
+             ) -> PlannedJob:
+    """Label, content key, portable plan and payload inputs of one job (label ``record/...``)."""
+    plan = plan_scenario(study.scenario_path(label.split("/")[0]), overrides)
+    pp = portable(plan)
+    return label, job_key(kind, {"job": label, "plan": plan_content(pp), **extra}, case_jobs.CODE_SOURCES), pp, extra

@@ -1,0 +1,195 @@
+"""Typed records between the case study's run and its report: what ``study.json`` holds.
+
+:class:`CaseStudyRecord` is the whole study (settings, per-record facts, every job's outcome,
+provenance); :class:`RecordInfo` one record's facts as planned; :class:`RunEntry` one
+record x strategy co-simulation; :class:`SweepOutcome` and :class:`ReferenceOutcome` the
+in-process jobs. Each converts to and from the JSON of ``study.json`` (``to_json`` /
+``from_json``), which ``--report`` and ``--resume`` read back; folders written before these
+records existed still read. ``config`` and the gain-set documents stay the JSON they are
+(the study's StudySpec dump, the gains files' documents).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+
+def utc_now() -> str:
+    """The time now, ISO 8601 in UTC (``2026-12-02T05:30:00Z``)."""
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+@dataclass(frozen=True)
+class RecordInfo:
+    """One record of the study as planned."""
+
+    scenario: str  # its scenario file
+    stop_time_s: float  # [s]
+    masses_kg: list[float]  # [kg] base first
+    record_file: str
+    scale: float | None  # amplitude scale of the ground motion
+    time_scale: float  # time scale of the ground motion (1: as recorded)
+    n_isolators: int | None
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RecordInfo:
+        return cls(d.get("scenario", ""), d["stop_time_s"], list(d["masses_kg"]), d.get("record_file", ""),
+                   d.get("scale"), d.get("time_scale", 1.0), d.get("n_isolators"))
+
+
+@dataclass
+class RunEntry:
+    """One record x strategy co-simulation: planned, then filled in as its job ends."""
+
+    key: str  # record/strategy
+    record: str
+    strategy: str
+    folder: str  # its run folder, relative to the study folder
+    ok: bool = False
+    error: str | None = None
+    current_A: float | None = None  # [A] the constant current of a passive strategy
+    overrides: list[str] | None = None  # the strategy's scenario overrides (None: not planned)
+    status: str | None = None  # how the run ended (None: it did not end)
+    wall_time_s: float | None = None
+    unit_warnings: dict[str, Any] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"key": self.key, "record": self.record, "strategy": self.strategy, "folder": self.folder,
+               "ok": self.ok, "error": self.error}
+        if self.overrides is not None:
+            out.update(current_A=self.current_A, overrides=self.overrides)
+        if self.status is not None:
+            out.update(status=self.status, wall_time_s=self.wall_time_s, unit_warnings=self.unit_warnings)
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RunEntry:
+        return cls(d["key"], d["record"], d["strategy"], d["folder"], bool(d.get("ok")), d.get("error"),
+                   d.get("current_A"), d.get("overrides"), d.get("status"), d.get("wall_time_s"),
+                   d.get("unit_warnings"))
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """The constant-current sweep of one record: every current's objective, the best current."""
+
+    ok: bool
+    error: str | None = None
+    rows: list[dict[str, Any]] = field(default_factory=list)  # current_A, x0, d, a3, J per current
+    best_current_A: float | None = None  # [A]
+    best_J: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"ok": self.ok, "error": self.error}
+        return out if not self.ok else {**out, "rows": self.rows, "best_current_A": self.best_current_A,
+                                         "best_J": self.best_J}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> SweepOutcome:
+        return cls(bool(d.get("ok")), d.get("error"), d.get("rows") or [], d.get("best_current_A"), d.get("best_J"))
+
+
+@dataclass(frozen=True)
+class ReferenceOutcome:
+    """The monolithic Radau reference of one passive run: its peaks (units of peaks.csv) if ok."""
+
+    ok: bool
+    error: str | None = None
+    value: dict[str, float] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> ReferenceOutcome:
+        return cls(bool(d.get("ok")), d.get("error"), d.get("value"))
+
+
+@dataclass(frozen=True)
+class PreparedStudy:
+    """A study checked before anything is written: its records, gain sets, coupling algorithms and step."""
+
+    records: dict[str, RecordInfo]
+    gain_sets: dict[str, dict[str, Any]]  # SOSM strategy -> its gains file's document
+    algorithms: dict[str, str]  # record -> coupling algorithm
+    step: float | None  # [s] communication step
+
+    @property
+    def gains(self) -> dict[str, Any] | None:
+        """The document of the ``sosm`` gains file, if the study has that strategy."""
+        return self.gain_sets.get("sosm")
+
+
+@dataclass
+class CaseStudyRecord:
+    """A case study from its start to its report (``study.json``)."""
+
+    name: str
+    description: str
+    study_file: str
+    started: str
+    config: dict[str, Any]  # the StudySpec dump and the swept currents (``sweep_currents``)
+    strategies: list[str]
+    records: dict[str, RecordInfo]
+    run_overrides: list[str]
+    gains: dict[str, Any] | None  # the sosm gains document (also in gain_sets)
+    gains_file: str | None
+    gain_sets: dict[str, dict[str, Any]]
+    gains_files: dict[str, str]
+    provenance: dict[str, Any]
+    batch: dict[str, Any] = field(default_factory=dict)  # where the jobs ran: scheduler, workers
+    finished: str | None = None
+    best_current: dict[str, float] = field(default_factory=dict)  # record -> best constant current [A]
+    sweep: dict[str, SweepOutcome] = field(default_factory=dict)  # record -> its sweep
+    reference: dict[str, ReferenceOutcome] = field(default_factory=dict)  # record/strategy -> its reference
+    runs: list[RunEntry] = field(default_factory=list)
+    indices: dict[str, dict[str, float]] = field(default_factory=dict)  # record/strategy -> evaluation indices
+    jobs_computed: int = 0  # jobs sent to the pool (the others' results were stored already)
+    resumed: list[str] | None = None
+    interrupted: bool | None = None
+    metrics: dict[str, dict[str, float]] | None = None  # record/strategy -> metrics (written by the report)
+
+    def run(self, key: str) -> RunEntry:
+        """The run entry of ``record/strategy``."""
+        return next(e for e in self.runs if e.key == key)
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "name": self.name, "description": self.description, "study_file": self.study_file,
+            "started": self.started, "finished": self.finished, "config": self.config,
+            "strategies": self.strategies, "records": {r: i.to_json() for r, i in self.records.items()},
+            "run_overrides": self.run_overrides, "gains": self.gains, "gains_file": self.gains_file,
+            "gain_sets": self.gain_sets, "gains_files": self.gains_files, "best_current": self.best_current,
+            "sweep": {r: s.to_json() for r, s in self.sweep.items()},
+            "reference": {k: v.to_json() for k, v in self.reference.items()},
+            "runs": [e.to_json() for e in self.runs], "indices": self.indices, "provenance": self.provenance,
+            "batch": self.batch, "jobs_computed": self.jobs_computed}
+        if self.resumed is not None:
+            out["resumed"] = self.resumed
+        if self.interrupted is not None:
+            out["interrupted"] = self.interrupted
+        if self.metrics is not None:
+            out["metrics"] = self.metrics
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> CaseStudyRecord:
+        return cls(
+            name=d["name"], description=d.get("description", ""), study_file=d["study_file"], started=d["started"],
+            config=d["config"], strategies=list(d["strategies"]),
+            records={r: RecordInfo.from_json(i) for r, i in d["records"].items()},
+            run_overrides=list(d.get("run_overrides", [])), gains=d.get("gains"), gains_file=d.get("gains_file"),
+            gain_sets=d.get("gain_sets") or ({"sosm": d["gains"]} if d.get("gains") else {}),
+            gains_files=d.get("gains_files") or ({"sosm": d["gains_file"]} if d.get("gains_file") else {}),
+            provenance=d.get("provenance", {}), batch=d.get("batch", d.get("engine", {})), finished=d.get("finished"),
+            best_current=d.get("best_current", {}),
+            sweep={r: SweepOutcome.from_json(s) for r, s in (d.get("sweep") or {}).items()},
+            reference={k: ReferenceOutcome.from_json(v) for k, v in (d.get("reference") or {}).items()},
+            runs=[RunEntry.from_json(e) for e in d.get("runs", [])], indices=d.get("indices") or {},
+            jobs_computed=d.get("jobs_computed", 0), resumed=d.get("resumed"), interrupted=d.get("interrupted"),
+            metrics=d.get("metrics"))

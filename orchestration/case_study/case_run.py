@@ -1,0 +1,376 @@
+"""The case study behind ``python orchestration/study.py scenarios/case_study.yaml``.
+
+Every record x strategy runs as a co-simulation through the master, on the Dask batch pool
+(:mod:`orchestration.batch.pool`: a local cluster, or ``--scheduler ADDRESS``), each in
+a child process of a worker; the current sweeps and Radau references run in the workers.
+The study folder gets ``peaks.csv``, ``indices.csv``, ``sweep.csv``, ``reference.csv``,
+``figures/``, ``report.md``, ``report.html``, ``study.json``, the run folders (``runs/``,
+sent back by the workers), the jobs' output (``logs/``) and every job's result under its
+content key (``jobs/``). A study folder is never overwritten; every file is written
+atomically. ``--resume DIR`` finishes an interrupted study (only the jobs whose results are
+missing run); ``--report DIR`` regenerates the tables, figures and report from its data.
+
+Exit codes: 0 every job succeeded; 1 some jobs failed or the study was interrupted (the
+report lists them; the other results are complete); 2 configuration error or no usable
+Dask cluster (nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+from orchestration.batch.jobs import write_run_files
+from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
+from orchestration.batch.portable import PortablePlan, file_bytes
+from orchestration.batch.store import ResultStore
+from orchestration.case_study import case_jobs
+from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.case_study.case_jobs import (
+    BENCHMARK_OUTPUTS_OVERRIDE,
+    OUTPUTS_OVERRIDE,
+    cosim_job,
+    reference_job,
+    sweep_job,
+)
+from orchestration.case_study.case_plan import PlannedJob, plan_job, prepare, run_strategy_overrides
+from orchestration.case_study.case_records import (
+    CaseStudyRecord,
+    PreparedStudy,
+    ReferenceOutcome,
+    RunEntry,
+    SweepOutcome,
+    utc_now,
+)
+from orchestration.case_study.case_report import read_study, write_outputs
+from orchestration.case_study.tuning import NotMonolithic, read_gains, run_overrides
+from orchestration.engine_hooks import require_kind
+from orchestration.master.errors import ScenarioError
+from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
+from orchestration.provenance import provenance
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Command-line arguments."""
+    parser = argparse.ArgumentParser(prog="study.py", description="Run a case study (records x strategies).")
+    parser.add_argument("study", type=Path, nargs="?", help="study YAML file (scenarios/case_study.yaml)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a study key, e.g. --set 'overrides=[simulation.stop_time=5]' or "
+                             "--set 'strategies=[passive-off, sosm]'")
+    parser.add_argument("--out", type=Path, help="study folder to create (must not exist or be empty)")
+    add_pool_arguments(parser)
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
+    parser.add_argument("--resume", type=Path, metavar="DIR",
+                        help="finish an interrupted study folder: compute only the jobs whose results are missing")
+    parser.add_argument("--base-sensitivity", action="store_true",
+                        help="instead of the study: its comparisons for base-floor variants (m_b, k_b, c_b), "
+                             "in-process, on a window of each record (orchestration/case_study/base_sensitivity.py)")
+    parser.add_argument("--window", type=float, default=None, metavar="S",
+                        help="--base-sensitivity: seconds of each record (default 40)")
+    args = parser.parse_args(argv)
+    if args.base_sensitivity and args.study is None:
+        parser.error("--base-sensitivity needs a study file")
+    if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
+        parser.error("give a study file, or --report DIR, or --resume DIR")
+    return args
+
+
+def add_pool_arguments(parser: argparse.ArgumentParser) -> None:
+    """--scheduler and --workers, shared by the study tools."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786; default: the environment "
+                             "variable DASK_SCHEDULER_ADDRESS, else a local cluster)")
+    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: the study's "
+                                                    "'workers', else one per core)")
+
+
+def open_pool(args: argparse.Namespace, workers: int | None, max_worker_deaths: int) -> BatchPool:
+    """The pool the arguments ask for, started; BatchUnavailable or ValueError if it cannot be had."""
+    if args.workers is not None and args.workers < 1:
+        raise ValueError("--workers must be at least 1")
+    pool = BatchPool(scheduler_address(args.scheduler), args.workers if args.workers is not None else workers,
+                     max_worker_deaths=max_worker_deaths, preload=(case_jobs.__name__,))
+    pool.start()
+    return pool
+
+
+def new_record(study: LoadedStudy, prepared: PreparedStudy, pool: BatchPool, command: list[str],
+               resumed: CaseStudyRecord | None) -> CaseStudyRecord:
+    """The study's record as it starts (``resumed``: the study.json of an earlier run of the folder)."""
+    spec = study.spec
+    record = CaseStudyRecord(
+        name=spec.name, description=spec.description, study_file=str(study.path), started=utc_now(),
+        config={**spec.model_dump(), "sweep_currents": spec.sweep.currents(spec.i_max)},
+        strategies=list(spec.strategies), records=dict(prepared.records), run_overrides=list(run_overrides(spec)),
+        gains=prepared.gains, gains_file=str(study.gains_path) if prepared.gains else None,
+        gain_sets=dict(prepared.gain_sets), gains_files={s: str(study.gain_set_path(s)) for s in prepared.gain_sets},
+        provenance={**provenance(), "command": command, "algorithms": prepared.algorithms, "step_s": prepared.step},
+        batch={"scheduler": pool.scheduler, "workers": pool.n_workers})
+    if resumed is not None:
+        record.started = resumed.started
+        record.resumed = [*(resumed.resumed or []), utc_now()]
+    return record
+
+
+def count_jobs(spec: StudySpec) -> int:
+    """Jobs of a study: sweeps, co-simulations and references."""
+    n = len(spec.records)
+    references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
+    return n * ("best-constant" in spec.strategies) + n * len(spec.strategies) + n * references
+
+
+class JobRunner:
+    """Runs a study's jobs on the pool: stored results reused, each new result stored, run folders written."""
+
+    def __init__(self, folder: Path, record: CaseStudyRecord, spec: StudySpec, pool: BatchPool, bar: ProgressBar
+                 ) -> None:
+        self.folder, self.record, self.spec, self.pool, self.bar = folder, record, spec, pool, bar
+        self.store = ResultStore(folder)
+        self.collected: dict[str, JobResult] = {}  # label -> every finished job, also when interrupted
+        self.labels: dict[str, str] = {}  # content key -> job label (record/strategy[/reference])
+        self.shared: dict[str, Any] = {}  # SHA-256 -> handle of the file's bytes on the cluster
+
+    def files_of(self, pp: PortablePlan) -> dict[str, Any]:
+        """The handles of a plan's files on the cluster (each file shared once)."""
+        for sha, path in file_bytes([pp]).items():
+            if sha not in self.shared:
+                self.shared[sha] = self.pool.share(path.read_bytes())
+        return {sha: self.shared[sha] for sha in pp.shas}
+
+    def done(self, res: JobResult, stored: bool = False) -> None:
+        """A job ended (or its stored result was found): files, log, store, progress, messages."""
+        content_key = res.key
+        label = self.labels.get(content_key, content_key)
+        res = JobResult(label, res.ok, res.value, res.error, res.details, res.wall_time_s, res.status, res.worker,
+                        res.output)
+        value = res.value
+        if res.ok and isinstance(value, dict) and "files" in value:
+            write_run_files(self.folder / self.record.run(label).folder, value.pop("files"))
+        if res.output or res.details:
+            (self.folder / "logs" / f"{label.replace('/', '-')}.log").write_text(res.output + res.details)
+        if not stored:
+            self.store.put(content_key,
+                           {"label": label, "ok": res.ok, "status": res.status, "value": value, "error": res.error,
+                            "wall_time_s": res.wall_time_s, "worker": res.worker})
+        self.collected[label] = res
+        self.bar.done(res.ok and not (isinstance(value, dict) and value.get("complete") is False))
+        if not res.ok:
+            self.bar.write(f"FAILED {label}: {res.error}")
+        elif isinstance(value, dict) and "time_beyond_identified_range_s" in value:
+            self.warn(label, value)
+
+    def warn(self, label: str, v: dict[str, Any]) -> None:
+        """Messages on a co-simulation's end: incomplete, or beyond the isolator's identified range."""
+        spec = self.spec
+        if not v["complete"]:
+            self.bar.write(f"FAILED {label}: run {v['status']}: {v['error']}")
+        if (v["time_beyond_identified_range_s"] or 0) > 0:
+            limit = (f"; beyond the {1e3 * spec.x_limit:g} mm device limit for "
+                     f"{v['time_beyond_device_limit_s']:.3g} s" if v["time_beyond_device_limit_s"] else "")
+            self.bar.write(f"warning: {label}: base displacement {1e3 * v['peak_base_displacement_m']:.2f} mm, beyond "
+                           f"the identified ±{1e3 * spec.x_identified:g} mm for "
+                           f"{v['time_beyond_identified_range_s']:.3g} s (isolator model extrapolated){limit}")
+
+    def run(self, fn: Any, jobs: list[PlannedJob], isolate: bool) -> None:
+        """Jobs (label, key, plan, inputs): stored results reused, the others run on the pool."""
+        todo = []
+        for label, key, pp, extra in jobs:
+            self.labels[key] = label
+            old = self.store.get(key)
+            if old is not None:
+                self.done(JobResult(key, old["ok"], old.get("value"), old.get("error"), "",
+                                    old.get("wall_time_s", 0.0), old["status"], old.get("worker")), stored=True)
+            else:
+                todo.append((key, {"plan": pp, "files": self.files_of(pp), **extra}))
+        if todo:
+            self.record.jobs_computed += len(todo)
+            self.pool.map(fn, [p for _, p in todo], [k for k, _ in todo], isolate=isolate,
+                          timeout_s=self.spec.timeout_s, on_done=self.done)
+
+
+def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
+    """The constant-current sweep of every record (for best-constant): into the record's sweep and best current."""
+    spec, record = study.spec, runner.record
+    extra = {"currents": spec.sweep.currents(spec.i_max), "objective": spec.objective.model_dump()}
+    base = run_overrides(spec)
+    runner.run(sweep_job, [plan_job(study, f"{r}/sweep", "sweep", base, extra) for r in record.records],
+               isolate=False)
+    for r in record.records:
+        res = runner.collected.get(f"{r}/sweep")
+        if res is not None:
+            record.sweep[r] = SweepOutcome.from_json({"ok": res.ok, "error": res.error, **(res.value or {})})
+            if res.ok:
+                record.best_current[r] = res.value["best_current_A"]
+
+
+def plan_runs(study: LoadedStudy, runner: JobRunner) -> tuple[list[PlannedJob], list[PlannedJob]]:
+    """Every co-simulation (its run entry added to the record) and every Radau reference, longest record first."""
+    spec, record = study.spec, runner.record
+    base = run_overrides(spec)
+    gains = {s: doc["gains"] for s, doc in record.gain_sets.items()}
+    runs, references = [], []
+    for r in sorted(record.records, key=lambda r: -record.records[r].stop_time_s):
+        for s in spec.strategies:
+            entry = RunEntry(f"{r}/{s}", r, s, f"runs/{r}-{s}")
+            record.runs.append(entry)
+            if s == "best-constant" and r not in record.best_current:
+                sweep = record.sweep.get(r)
+                entry.error = f"current sweep failed: {sweep.error if sweep else None}"
+                runner.done(JobResult(entry.key, False, error=entry.error, status="failed"), stored=True)
+                continue
+            strategy, best = study.strategy(s), record.best_current.get(r)
+            extra = run_strategy_overrides(study, s, study.scenario_path(r), spec.i_max,
+                                           gains.get(strategy.entry.gains or ""), best)
+            entry.current_A = strategy.constant_current(spec.i_max, best)
+            entry.overrides = list(extra)
+            outputs = OUTPUTS_OVERRIDE if spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
+            runs.append(plan_job(study, entry.key, "cosim", (*base, *extra, outputs), {}))
+        if spec.reference.enabled:
+            for s in ("passive-off", "passive-on"):
+                if s in spec.strategies:
+                    current = 0.0 if s == UNCONTROLLED else spec.i_max
+                    references.append(plan_job(study, f"{r}/{s}/reference", "reference", base,
+                                               {"current": current, "rtol": spec.reference.rtol}))
+    return runs, references
+
+
+def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
+    """The finished jobs into the run entries and references (a run without a result: not run)."""
+    for entry in record.runs:
+        res = results.get(entry.key)
+        if res is None:
+            entry.error = entry.error or "not run (interrupted)"
+        elif not res.ok:
+            entry.error = res.error
+        else:
+            v = res.value
+            entry.ok = bool(v["complete"])
+            entry.error = None if v["complete"] else f"run {v['status']}: {v['error']}"
+            entry.status, entry.wall_time_s, entry.unit_warnings = v["status"], v["wall_time_s"], v["unit_warnings"]
+    for r in record.records:  # in the study's order (not the order the jobs ended in): reference.csv is stable
+        for s in record.strategies:
+            res = results.get(f"{r}/{s}/reference")
+            if res is not None:
+                record.reference[f"{r}/{s}"] = ReferenceOutcome(res.ok, res.error, res.value)
+
+
+def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, progress: bool,
+              command: list[str], resumed: CaseStudyRecord | None = None) -> int:
+    """Run every job of a prepared study into ``folder`` on ``pool``; returns the exit code.
+
+    Each job's result is stored under its content key (:class:`ResultStore`); with ``resumed``
+    (the study.json of an earlier, unfinished run of this folder) stored results are reused.
+    """
+    spec = study.spec
+    record = new_record(study, prepared, pool, command, resumed)
+    (folder / "logs").mkdir(exist_ok=True)
+    (folder / "runs").mkdir(exist_ok=True)
+    write_json(folder / "study.json", record.to_json())
+    bar = ProgressBar(count_jobs(spec), spec.name, enabled=progress)
+    bar.write(pool.describe())
+    runner = JobRunner(folder, record, spec, pool, bar)
+    interrupted = False
+    try:
+        if "best-constant" in spec.strategies:
+            run_sweeps(study, runner)
+        runs, references = plan_runs(study, runner)
+        runner.run(cosim_job, runs, isolate=True)
+        runner.run(reference_job, references, isolate=False)
+    except KeyboardInterrupt:
+        interrupted = True
+        bar.write("interrupted: writing the report of the finished runs")
+    collect(record, runner.collected)
+    record.finished = utc_now()
+    record.interrupted = interrupted
+    write_json(folder / "study.json", record.to_json())
+    bar.close()
+    write_outputs(folder, record)
+    failed = [e.key for e in record.runs if not e.ok]
+    failed += [k for k, v in {**record.sweep, **record.reference}.items() if not v.ok]
+    print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
+    return 1 if failed or interrupted else 0
+
+
+def resumed_study(folder: Path) -> tuple[LoadedStudy, CaseStudyRecord]:
+    """The study of an existing study folder, as it was configured; ScenarioError if unusable."""
+    try:
+        data = read_study(folder)
+        config = {k: v for k, v in data.config.items() if k != "sweep_currents"}
+        spec = StudySpec.model_validate(config)
+        return LoadedStudy(spec, Path(data.study_file), config), data
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ScenarioError(f"{folder}: not a study folder that can be resumed ({type(exc).__name__}: {exc})"
+                            ) from None
+
+
+def _base_sensitivity(args: argparse.Namespace, study: LoadedStudy, argv: list[str]) -> int:
+    """``--base-sensitivity``: the study's comparisons for base-floor variants into a new folder."""
+    from orchestration.case_study.base_sensitivity import WINDOW_S, run_sensitivity, write_sensitivity
+
+    window = WINDOW_S if args.window is None else args.window
+    if not window > 0:
+        raise ValueError(f"--window must be positive, got {window}")
+    for s in ("sosm", "sosm-fig15"):
+        read_gains(study.gain_set_path(s))  # ScenarioError before anything is written
+    pool = open_pool(args, study.spec.workers, study.spec.max_worker_deaths)
+    with pool:
+        try:
+            folder = new_run_folder(Path(study.spec.output), f"{study.spec.name}-base-sensitivity", args.out)
+        except RunFolderExists as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        data = run_sensitivity(study, pool, window)
+    write_sensitivity(folder, data, "python orchestration/study.py " + shlex.join(argv))
+    print(f"base-floor sensitivity done: {folder / 'base_sensitivity.md'} ({data['wall_time_s']:.0f} s)")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point; returns the exit code."""
+    args = parse_args(argv)
+    if args.report is not None:
+        try:
+            data = read_study(args.report)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            print(f"error: cannot read {args.report / 'study.json'}: {exc}", file=sys.stderr)
+            return 2
+        write_outputs(args.report, data)
+        print(f"report regenerated: {args.report / 'report.md'}")
+        return 0
+    resumed = None
+    try:
+        if args.resume is not None:
+            study, resumed = resumed_study(args.resume)
+        else:
+            try:
+                study = load_study(args.study, tuple(args.overrides))
+            except ScenarioError:
+                require_kind(args.study, "study")  # a run scenario: name run.py instead
+                raise
+        if args.base_sensitivity:
+            return _base_sensitivity(args, study, sys.argv[1:] if argv is None else argv)
+        prepared = prepare(study)
+        pool = open_pool(args, study.spec.workers, study.spec.max_worker_deaths)
+    except ScenarioError as exc:
+        print(exc.report(), file=sys.stderr)
+        return 2
+    except (NotMonolithic, BatchUnavailable, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        folder = args.resume if args.resume is not None else new_run_folder(Path(study.spec.output),
+                                                                             study.spec.name, args.out)
+    except RunFolderExists as exc:
+        pool.close()
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+    # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
+    try:
+        return run_study(study, folder, prepared, pool, not args.quiet, [sys.executable, *sys.argv], resumed)
+    finally:
+        pool.close()

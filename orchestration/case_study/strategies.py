@@ -1,0 +1,262 @@
+"""The control strategies of the studies: entries of a strategy file, turned into scenario overrides.
+
+A strategy is an entry of ``scenarios/strategies.yaml`` (shipped; a study may add files with
+``strategy_files`` or entries with ``strategy_definitions``): a controller FMU (or none: the
+record scenario's own controller unit), its parameters, its sensor connections, a gain set and
+a label. The built-in ones:
+
+| strategy | controller unit |
+|---|---|
+| ``passive-off`` | constant 0 A (``controller.mode=passive``) |
+| ``passive-on`` | constant i_max |
+| ``best-constant`` | the constant current chosen by the case study's sweep |
+| ``sosm`` | the SOSM controller with the tuned gains (``scenarios/sosm_gains.yaml``) |
+| ``sosm-fig15`` | SOSM, second gain set: own limit (2.5 A), release band s_release (not in the paper) |
+| ``on-off`` | the ``SwitchingCurrentController`` FMU: i_max while the base moves away from 0, else 0 |
+| ``clipped-optimal`` | ``ClippedOptimalCurrentController``, Dyke's clipping (Dyke et al. 1996) |
+| ``clipped-optimal-inverse`` | the same, current from the inverse of Eq. 17 |
+| ``lyapunov`` | ``LyapunovCurrentController`` (after Jansen & Dyke 2000) |
+| ``frequency`` | ``FrequencyCurrentController`` (after Gu et al. 2015) |
+
+Problems (unknown strategy, missing FMU, a connection to a variable a unit lacks) are
+ScenarioErrors naming the file, line and key of the strategy entry; :func:`check_strategy`
+runs the engine's own checks (:func:`orchestration.engine_hooks.resolve_scenario`) on the
+record scenario with the strategy applied.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from orchestration.building_report import REPORT
+from orchestration.engine_hooks import PROJECT_DIR as PROJECT
+from orchestration.engine_hooks import resolve_scenario
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.scenario import validate_scenario, validation_problems
+from orchestration.master.yaml_source import Lines, apply_override, dotted, load_tree
+
+SHIPPED = PROJECT / "scenarios" / "strategies.yaml"
+CONTROLLER = "controller"  # the unit a strategy replaces
+I_MAX, BEST = "${i_max}", "${best_current}"  # placeholders in parameter values
+
+
+class StrategyEntry(BaseModel):
+    """One strategy as written in a strategy file (``fmu`` relative to that file)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    label: str = ""
+    fmu: str | None = None  # None: the record scenario's controller unit
+    parameters: dict[str, Any] = Field(default_factory=dict)
+    gains: Literal["sosm", "sosm-fig15"] | None = None  # the study's gain set: lambda, rho, zeta, theta, s_release
+    gains_limit: bool = False  # the gain set's i_max limits the controller
+    connections: list[Any] | None = None  # replace the scenario's connections into the controller
+
+
+class StrategyFile(BaseModel):
+    """A strategy file: a description and its entries."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    description: str = ""
+    strategies: dict[str, StrategyEntry] = Field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Strategy:
+    """A strategy entry with where it was written (file, lines, key path) for located problems."""
+
+    name: str
+    entry: StrategyEntry
+    file: Path  # the file it was written in
+    lines: Lines  # that file's key lines
+    prefix: tuple[Any, ...]  # its key path in that file (``("strategies", name)``)
+
+    @property
+    def label(self) -> str:
+        """How the report names it."""
+        return self.entry.label or self.name
+
+    def where(self, *key: Any) -> tuple[str, int | None]:
+        """File and line of a key of the entry (the entry's own line if the key has none)."""
+        for k in range(len(key), -1, -1):
+            hit = self.lines.get((*self.prefix, *key[:k]))
+            if hit is not None:
+                return hit
+        return str(self.file), None
+
+    def problem(self, message: str, *key: Any) -> Problem:
+        """A problem located at a key of the entry."""
+        file, line = self.where(*key)
+        return Problem(message, dotted((*self.prefix, *key)), file, line)
+
+    @property
+    def fmu_path(self) -> Path | None:
+        """The controller FMU (absolute), or None: the record scenario's own controller."""
+        if self.entry.fmu is None:
+            return None
+        p = Path(self.entry.fmu)
+        file = Path(self.where("fmu")[0])
+        return p if p.is_absolute() else (file.parent / p).resolve()
+
+    def values(self, i_max: float, best: float | None) -> dict[str, Any]:
+        """The controller's parameters with the placeholders filled in."""
+        return {k: i_max if v == I_MAX else best if v == BEST else v for k, v in self.entry.parameters.items()}
+
+    def constant_current(self, i_max: float, best: float | None) -> float | None:
+        """The constant current [A] of a passive strategy (SOSM unit in passive mode), else None."""
+        if self.entry.fmu is not None or self.entry.parameters.get("mode") != "passive":
+            return None
+        v = self.values(i_max, best).get("i_passive", 0.0)
+        return None if v is None else float(v)
+
+    def overrides(self, i_max: float, gains: dict[str, float] | None, best: float | None) -> tuple[str, ...]:
+        """Scenario overrides for the controller unit: FMU, parameters, then the gain set's gains."""
+        out = [f"units.{CONTROLLER}.fmu={self.fmu_path}"] if self.entry.fmu is not None else []
+        out += [f"{CONTROLLER}.{k}={_yaml_value(v)}" for k, v in self.values(i_max, best).items()]
+        if self.entry.gains is not None:
+            if gains is None:
+                raise ScenarioError(self.problem(f"no gains for the gain set {self.entry.gains!r}", "gains"))
+            out += [f"{CONTROLLER}.{k}={gains[k]!r}" for k in ("lambda", "rho", "zeta", "theta")]
+            if self.entry.gains_limit:
+                out.append(f"{CONTROLLER}.i_max={float(gains['i_max'])!r}")
+            if "s_release" in gains:
+                out.append(f"{CONTROLLER}.s_release={float(gains['s_release'])!r}")
+        return tuple(out)
+
+    def connections(self, scenario_connections: list[Any]) -> list[Any] | None:
+        """The run's connections: the scenario's, those into the controller replaced by the entry's (None: kept)."""
+        if self.entry.connections is None:
+            return None
+        kept = [c for c in scenario_connections if _target_unit(c) != CONTROLLER]
+        return [*kept, *self.entry.connections]
+
+    def connection_override(self, scenario_connections: list[Any]) -> tuple[str, ...]:
+        """``connections=[...]`` if the entry has connections, else nothing."""
+        conns = self.connections(scenario_connections)
+        return () if conns is None else (f"connections={json.dumps(conns)}",)
+
+
+def _yaml_value(v: Any) -> str:
+    """A parameter value as the text of a ``--set`` override (read back as YAML to the same value)."""
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, str) and yaml.safe_load(v) == v:
+        return v
+    return json.dumps(v)
+
+
+def _target_unit(connection: Any) -> str | None:
+    """The unit a connection leads into (``a.x -> b.y`` or ``{source, target}``)."""
+    target = connection.get("target") if isinstance(connection, dict) else (
+        connection.partition("->")[2] if isinstance(connection, str) else None)
+    return str(target).strip().split(".")[0] if target else None
+
+
+def read_strategy_file(path: Path) -> dict[str, Strategy]:
+    """The strategies of a strategy file (its ``extends`` chain merged); ScenarioError if malformed."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ScenarioError(f"strategy file {path} does not exist")
+    data, lines = load_tree(path)
+    try:
+        spec = StrategyFile.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(validation_problems(exc, lines, path, StrategyFile)) from None
+    return {name: Strategy(name, entry, path, lines, ("strategies", name)) for name, entry in spec.strategies.items()}
+
+
+def inline_strategies(entries: dict[str, StrategyEntry], path: Path, lines: Lines, key: str
+                      ) -> dict[str, Strategy]:
+    """Strategies written in a study file under ``key`` (already validated)."""
+    return {name: Strategy(name, entry, path, lines, (key, name)) for name, entry in entries.items()}
+
+
+def builtin_strategies() -> dict[str, Strategy]:
+    """The shipped strategies (``scenarios/strategies.yaml``)."""
+    return read_strategy_file(SHIPPED)
+
+
+def unknown_strategies(names: list[str], known: dict[str, Strategy], lines: Lines, path: Path, key: str
+                       ) -> list[Problem]:
+    """A located problem for every name in ``names`` (the study's list ``key``) that is not a known strategy."""
+    problems = []
+    for k, name in enumerate(names):
+        if name not in known:
+            file, line = lines.get((key, k), lines.get((key,), (str(path), None)))
+            problems.append(Problem(f"unknown strategy {name!r} (known: {', '.join(known)})", f"{key}.{k}",
+                                    file, line))
+    return problems
+
+
+def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_max: float,
+                   gains: dict[str, float] | None, best: float | None) -> None:
+    """The engine's checks on a record scenario run under a strategy; ScenarioError located in the strategy entry.
+
+    The scenario tree is built with the strategy's keys carrying the strategy file's lines, so a
+    missing FMU, a parameter or a connection variable the FMU lacks is reported at its line there.
+    """
+    data, lines = load_tree(scenario)
+    data.setdefault("name", scenario.stem)
+    units = data.get("units")
+    names = set(units) if isinstance(units, dict) else set()
+    for assignment in base:
+        apply_override(data, lines, assignment, names)
+    here: dict[tuple[Any, ...], tuple[Any, ...]] = {}  # scenario key -> the strategy entry's key
+    unit = data.setdefault("units", {}).setdefault(CONTROLLER, {})
+    if strategy.fmu_path is not None:
+        unit["fmu"] = str(strategy.fmu_path)
+        here[("units", CONTROLLER, "fmu")] = ("fmu",)
+    params = unit.setdefault("parameters", {}) if isinstance(unit, dict) else {}
+    for assignment in strategy.overrides(i_max, gains, best):
+        key, _, text = assignment.partition("=")
+        if key.startswith("units."):
+            continue
+        name = key.split(".", 1)[1]
+        params[name] = yaml.safe_load(text)
+        here[("units", CONTROLLER, "parameters", name)] = ("parameters", name) if name in strategy.entry.parameters \
+            else ("gains",)
+    conns = strategy.connections(list(data.get("connections") or []))
+    if conns is not None:
+        old = list(data.get("connections") or [])
+        kept = [k for k, c in enumerate(old) if _target_unit(c) != CONTROLLER]
+        moved = {("connections", new): lines.get(("connections", k)) for new, k in enumerate(kept)}
+        for key in [k for k in lines if k[:1] == ("connections",) and len(k) > 1]:
+            del lines[key]
+        lines.update({k: v for k, v in moved.items() if v is not None})
+        for j in range(len(strategy.entry.connections or [])):
+            here[("connections", len(kept) + j)] = ("connections", j)
+        data["connections"] = conns
+    for scen_key, own in here.items():
+        lines[scen_key] = strategy.where(*own)
+        for sub in ("source", "target"):
+            lines[(*scen_key, sub)] = strategy.where(*own, sub)
+    try:
+        resolve_scenario(validate_scenario(data, lines, scenario, REPORT.model))
+    except ScenarioError as exc:
+        raise ScenarioError([_relocated(p, here, strategy) for p in exc.problems]) from None
+
+
+def _relocated(problem: Problem, here: dict[tuple[Any, ...], tuple[Any, ...]], strategy: Strategy) -> Problem:
+    """A problem of the run's scenario named by the strategy entry's key where it comes from the entry."""
+    for scen_key, own in here.items():
+        text = dotted(scen_key)
+        if problem.key == text or problem.key.startswith(text + "."):
+            key = dotted((*strategy.prefix, *own)) + problem.key[len(text):]
+            return Problem(f"{problem.message} (strategy {strategy.name!r})", key, problem.file, problem.line)
+    return problem
+
+
+def strategy_overrides(strategy: str, i_max: float, gains: dict[str, float] | None, best: float | None
+                       ) -> tuple[str, ...]:
+    """Scenario overrides that make a run follow a built-in strategy's controller unit (no connections).
+
+    ``gains``: the gain set of an SOSM strategy; ``best``: the best constant current [A].
+    """
+    return builtin_strategies()[strategy].overrides(i_max, gains, best)

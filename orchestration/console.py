@@ -1,0 +1,67 @@
+"""``mre-cosim``: one console command for the project's command-line tools.
+
+``mre-cosim TOOL ARGS...`` calls the same ``main(argv)`` as the tool's script, with the
+same arguments, output and exit codes: ``mre-cosim run scenarios/kobe.yaml`` is
+``python orchestration/run.py scenarios/kobe.yaml`` and ``mre-cosim build`` is
+``python -m components.build``. Exit codes are the tool's; an unknown tool is exit 2.
+Installed by ``pip install -e .`` as a ``[project.scripts]`` entry.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Sequence
+
+PROG = "mre-cosim"
+
+TOOLS: dict[str, tuple[str, str]] = {
+    "run": ("orchestration.run", "run one co-simulation scenario and write a run folder (orchestration/run.py)"),
+    "study": ("orchestration.study", "run a case study: records x strategies (orchestration/study.py)"),
+    "ida": ("orchestration.ida", "incremental dynamic analysis and fragility (orchestration/ida.py)"),
+    "identify": ("orchestration.identify", "identify the isolator models from shake-table data "
+                                           "(orchestration/identify.py)"),
+    "tune": ("orchestration.tune", "tune the SOSM gains (orchestration/tune.py)"),
+    "ssp": ("orchestration.ssp", "export a scenario to an SSP 1.0 package (orchestration/ssp.py)"),
+    "build": ("components.build.project_fmus", "build every FMU of the project into fmus/ "
+                                               "(python -m components.build)"),
+}
+"""Tool name -> (module whose ``main(argv) -> int`` runs it, one-line description)."""
+
+EXIT_USAGE = 2
+
+
+def usage() -> str:
+    """The help text: every tool with its description."""
+    width = max(len(name) for name in TOOLS)
+    lines = [f"usage: {PROG} TOOL [ARGS...]", "",
+             "Semi-active seismic isolation by co-simulation: the project's command-line tools.", "", "tools:"]
+    lines += [f"  {name:<{width}}  {text}" for name, (_, text) in TOOLS.items()]
+    lines += ["", f"'{PROG} TOOL --help' shows a tool's arguments and exit codes (the tool's own)."]
+    return "\n".join(lines)
+
+
+def tool_main(name: str):
+    """The ``main(argv)`` function of tool ``name`` (imported on demand: each tool imports what it needs)."""
+    return importlib.import_module(TOOLS[name][0]).main
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``mre-cosim TOOL ARGS...``; returns the tool's exit code (2 for an unknown or missing tool)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] in ("-h", "--help"):
+        print(usage())
+        return 0
+    if not args or args[0] not in TOOLS:
+        what = f"unknown tool {args[0]!r}" if args else "no tool given"
+        print(f"{usage()}\n\n{PROG}: error: {what} (choose from {', '.join(TOOLS)})", file=sys.stderr)
+        return EXIT_USAGE
+    if argv is None:  # the console command: Ctrl-C while the tool's modules import is one line and exit 130
+        from orchestration.cli import quiet_interrupts
+
+        quiet_interrupts()
+    return tool_main(args[0])(args[1:])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,123 @@
+"""This project's wiring of the generic master: its FMUs built on demand, its records found and checked.
+
+The engine (:mod:`orchestration.master`) knows FMUs only through their model descriptions;
+the applications (command-line tools, studies, the Python API) give it these hooks:
+
+* an FMU path in the project's ``fmus/`` folder is built from ``components/`` when it is
+  missing or older than its sources (:func:`components.build.project_fmus.ensure_fmu`);
+* a ``!record`` file (and a ``!data`` file given as the ground motion's ``record``) is read
+  once before the run (a file that is not a record is a scenario error, not a failure at t = 0);
+* the records the project ships (``scenarios/records/``) are on the data search path,
+  after ``--data-dir`` and ``MRE_COSIM_DATA``;
+* a scenario's ``report`` section may name the isolated building's roles and limits, which
+  give the summary's peaks and the run's figures (:mod:`orchestration.building_report`);
+* a project unit's parameter values outside its domain (each rule in its physics core) are
+  scenario errors before any run, not failures at initialization (:mod:`orchestration.parameter_domains`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from components.build.project_fmus import ensure_fmu
+from components.physics.ground_motion_core import RecordError, read_record
+from orchestration.building_report import REPORT
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.execution import StopRequest
+from orchestration.master.resolve import ResolveHooks, SystemPlan, check_environment, resolve
+from orchestration.master.scenario import LoadedScenario, load_scenario
+from orchestration.master.session import RunOutcome, run_plan
+from orchestration.master.unit import UnitDescription
+from orchestration.master.yaml_source import load_tree
+from orchestration.parameter_domains import parameter_problems
+from orchestration.provenance import provenance
+
+PROJECT_DIR = Path(__file__).resolve().parent.parent  # == orchestration.provenance.PROJECT_DIR
+RECORDS_DIR = PROJECT_DIR / "scenarios" / "records"
+
+
+def check_record(path: Path) -> str | None:
+    """Problem text if ``path`` is not a readable ground-motion record, else None."""
+    try:
+        read_record(path)
+    except RecordError as exc:
+        return f"unreadable record: {exc}"
+    return None
+
+
+def data_kind(description: UnitDescription, variable: str) -> str | None:
+    """``record`` for the ground-motion source's ``record`` parameter (a file tagged ``!data`` is checked as a
+    record too), else None."""
+    if description.model_identifier == "GroundMotionSource" and variable == "record":
+        return "record"
+    return None
+
+
+HOOKS = ResolveHooks(prepare_fmu=ensure_fmu, data_checks={"record": check_record}, default_data_dirs=(RECORDS_DIR,),
+                     provenance=provenance, report=REPORT, data_kind=data_kind, parameter_check=parameter_problems)
+CHECK_ONLY = replace(HOOKS, prepare_fmu=None)  # the same checks, no FMU is built
+
+
+# Top-level keys that only one kind of file has, and the tool that reads it.
+FILE_KINDS = {
+    "scenario": ({"units", "connections"}, "python orchestration/run.py"),
+    "study": ({"records", "strategies"}, "python orchestration/study.py"),
+    "identification": ({"identifiers", "ffoa", "fit"}, "python orchestration/identify.py"),
+}
+
+
+def file_kind(path: Path | str) -> str | None:
+    """'scenario', 'study' or 'identification' from a YAML file's top-level keys; None if unknown or unreadable."""
+    try:
+        data, _ = load_tree(Path(path))
+    except (ScenarioError, OSError, RecursionError):
+        return None
+    keys = set(data) if isinstance(data, dict) else set()
+    kinds = [kind for kind, (marks, _) in FILE_KINDS.items() if keys & marks]
+    return kinds[0] if len(kinds) == 1 else None
+
+
+def require_kind(path: Path | str, expected: str) -> None:
+    """ScenarioError naming the right tool if a YAML file is plainly another kind of file."""
+    kind = file_kind(path)
+    if kind is not None and kind != expected:
+        raise ScenarioError(Problem(f"this is {'an' if kind[0] in 'aeiou' else 'a'} {kind} file, not a {expected} "
+                                    f"file: use {FILE_KINDS[kind][1]} {path}", "", str(path)))
+
+
+def resolve_scenario(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), build: bool = True) -> SystemPlan:
+    """Check a loaded scenario (YAML or SSP) with the project's hooks; raises ScenarioError.
+
+    ``build=False`` builds no FMU (a missing one is a problem like any other).
+    """
+    return resolve(loaded, data_dirs, HOOKS if build else CHECK_ONLY)
+
+
+def plan_scenario(path: Path | str, overrides: tuple[str, ...] = (), data_dirs: tuple[Path, ...] = ()) -> SystemPlan:
+    """Load and check a scenario file or SSP package (builds project FMUs if needed); raises ScenarioError."""
+    check_environment()  # MRE_COSIM_* values that mean nothing: refused before any file is read
+    if Path(path).suffix.lower() == ".ssp":
+        from orchestration.interop.ssp_package import load_ssp
+
+        return resolve_scenario(load_ssp(path, overrides), data_dirs)
+    try:
+        loaded = load_scenario(path, overrides, REPORT.model)
+    except ScenarioError:
+        require_kind(path, "scenario")  # a study or identification file: name the right tool instead
+        raise
+    return resolve_scenario(loaded, data_dirs)
+
+
+def run_scenario(
+    path: Path | str,
+    overrides: tuple[str, ...] = (),
+    out: Path | None = None,
+    data_dirs: tuple[Path, ...] = (),
+    plots: bool = True,
+    progress: bool = False,
+    stop: StopRequest | None = None,
+) -> RunOutcome:
+    """Load, check and run a scenario file; ScenarioError before anything is written."""
+    plan = plan_scenario(path, overrides, data_dirs)
+    return run_plan(plan, out, plots, progress, stop)

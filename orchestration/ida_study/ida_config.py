@@ -1,0 +1,188 @@
+"""An IDA study file (``scenarios/ida.yaml``): suite, window, time scale, intensity ladder, strategies, limit states.
+
+Read with the project's YAML loader (file and line of every key) and validated with
+pydantic (unknown keys refused). Every problem -- of the file, of the suite (unknown name,
+a folder without a readable record), of the strategies and the gains -- is collected into
+one :class:`~orchestration.master.errors.ScenarioError` before anything is computed.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from orchestration.case_study.case_config import apply_overrides
+from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
+from orchestration.master.errors import Problem
+from orchestration.master.scenario import validation_problems
+from orchestration.master.yaml_source import load_tree
+
+BUILTIN_STRATEGIES = ("passive-off", "passive-on", "sosm", "on-off")
+# limit-state quantity -> (column of the results table, factor to SI, unit)
+QUANTITIES = {
+    "isolator_displacement": ("x_base_mm", 1e-3, "m"),
+    "storey_drift": ("drift_max_mm", 1e-3, "m"),
+    "floor_acceleration": ("acc_max", 1.0, "m/s²"),
+}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class FolderSuite(_Strict):
+    """The record files of a folder (relative to the study file)."""
+
+    folder: str
+    patterns: list[str] = Field(default_factory=lambda: list(DEFAULT_PATTERNS))
+
+
+class WindowSpec(_Strict):
+    """Which part of each record runs: the strong-motion window (else the whole record), then free vibration."""
+
+    strong_motion: bool = True
+    tail_s: float = Field(2.0, ge=0.0)  # [s] simulated after the window ends (ground at rest)
+
+
+class IntensitySpec(_Strict):
+    """The ladder of intensity levels every record is scaled to."""
+
+    measure: Literal["pga", "sa"] = "sa"
+    levels: list[float]  # [g], strictly increasing
+    damping: float = Field(0.05, ge=0.0, lt=1.0)  # Sa only
+    period_s: float | None = None  # Sa only; None: the isolated period computed from the scenario
+    period_current_A: float = Field(0.0, ge=0.0)  # [A] reference current of the isolated period
+    period_displacement_m: float = Field(0.008, ge=0.0)  # [m] secant stiffness at this displacement (0: tangent)
+
+    @field_validator("levels")
+    @classmethod
+    def _ladder(cls, value: list[float]) -> list[float]:
+        if not value:
+            raise ValueError("the intensity ladder needs at least one level")
+        bad = [v for v in value if not (math.isfinite(v) and v > 0)]
+        if bad:
+            raise ValueError(f"intensity levels must be positive numbers, got {bad}")
+        drops = [f"{b:g} after {a:g}" for a, b in itertools.pairwise(value) if not b > a]
+        if drops:
+            raise ValueError(f"the intensity ladder must increase strictly: {', '.join(drops)}")
+        return value
+
+    @field_validator("period_s")
+    @classmethod
+    def _period(cls, value: float | None) -> float | None:
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"period_s must be positive, got {value}")
+        return value
+
+
+class LimitStateSpec(_Strict):
+    """Exceeded when the run's peak ``quantity`` goes beyond ``threshold`` (SI: m, m, m/s²)."""
+
+    quantity: Literal["isolator_displacement", "storey_drift", "floor_acceleration"]
+    threshold: float = Field(gt=0.0)
+    label: str = ""
+
+
+class CustomStrategy(_Strict):
+    """A strategy defined by scenario overrides (e.g. a unit swap: ``units.controller.fmu=...``)."""
+
+    name: str
+    overrides: list[str]
+
+
+class IdaSpec(_Strict):
+    """A whole IDA study, as written in the YAML file (paths relative to it)."""
+
+    name: str = "ida"
+    description: str = ""
+    scenario: str = "isolated_building.yaml"  # the system; each run sets ground.record, scale and time_scale
+    suite: str | FolderSuite
+    time_scale: float = Field(1.0, gt=0.0)  # a record sample at tau plays at time_scale * tau
+    window: WindowSpec = Field(default_factory=WindowSpec)
+    intensity: IntensitySpec
+    strategies: list[str | CustomStrategy] = Field(default_factory=lambda: ["passive-off", "passive-on", "sosm"])
+    limit_states: dict[str, LimitStateSpec]
+    overrides: list[str] = Field(default_factory=list)
+    i_max: float = Field(3.0, gt=0.0)
+    gains: str = "sosm_gains.yaml"
+    confidence: float = Field(0.95, gt=0.0, lt=1.0)
+    workers: int | None = Field(None, ge=1)
+    max_worker_deaths: int = Field(2, ge=0)
+    timeout_s: float | None = 900.0  # per run
+    output: str = "studies"
+
+    @field_validator("suite", mode="before")
+    @classmethod
+    def _suite(cls, value: Any) -> Any:
+        if isinstance(value, str) and value not in KNOWN_SUITES:
+            raise ValueError(f"unknown suite {value!r} (known: {', '.join(KNOWN_SUITES)}; or a folder: "
+                             "{folder: PATH})")
+        return value
+
+    @field_validator("strategies")
+    @classmethod
+    def _strategies(cls, value: list[str | CustomStrategy]) -> list[str | CustomStrategy]:
+        unknown = [s for s in value if isinstance(s, str) and s not in BUILTIN_STRATEGIES]
+        if unknown:
+            raise ValueError(f"unknown strategies {unknown} (known: {', '.join(BUILTIN_STRATEGIES)}; or "
+                             "{name: NAME, overrides: [...]})")
+        names = [s if isinstance(s, str) else s.name for s in value]
+        if not names:
+            raise ValueError("a study needs at least one strategy")
+        if len(set(names)) != len(names):
+            raise ValueError(f"strategies are named twice: {names}")
+        return value
+
+    @field_validator("limit_states")
+    @classmethod
+    def _limit_states(cls, value: dict[str, LimitStateSpec]) -> dict[str, LimitStateSpec]:
+        if not value:
+            raise ValueError("a study needs at least one limit state")
+        return value
+
+    @model_validator(mode="after")
+    def _period_needed(self) -> IdaSpec:
+        if self.intensity.measure == "pga" and self.intensity.period_s is not None:
+            raise ValueError("intensity.period_s is for measure 'sa' only")
+        return self
+
+    @property
+    def strategy_names(self) -> list[str]:
+        return [s if isinstance(s, str) else s.name for s in self.strategies]
+
+
+class LoadedIda:
+    """A validated IDA study with its file (paths in it are relative to that file)."""
+
+    def __init__(self, spec: IdaSpec, path: Path) -> None:
+        self.spec = spec
+        self.path = path
+
+    def resolve(self, name: str) -> Path:
+        p = Path(name)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+
+
+
+def load_ida(path: Path | str, overrides: tuple[str, ...] = ()) -> tuple[LoadedIda | None, list[Problem], Any]:
+    """Read and validate an IDA study file: (study or None, every problem of the file, its raw data).
+
+    ScenarioError only for a file that cannot be read as YAML at all.
+    """
+    path = Path(path).resolve()
+    if not path.is_file():
+        return None, [Problem(f"study file {path} does not exist")], None
+    data, lines = load_tree(path)
+    if not isinstance(data, dict):
+        return None, [Problem("an IDA study file is a mapping of keys", "", str(path))], data
+    apply_overrides(data, lines, overrides)
+    try:
+        spec = IdaSpec.model_validate(data)
+    except ValidationError as exc:
+        return None, validation_problems(exc, lines, path, IdaSpec), data
+    return LoadedIda(spec, path), [], data

@@ -1,0 +1,109 @@
+"""The figures of an IDA study.
+
+* ``figures/ida_curves.png``: one panel per strategy; for every record component the peak
+  isolator displacement [mm] against the intensity, the median over components in bold,
+  the identified 8 mm and the 15 mm device limit marked.
+* ``figures/fragility.png``: one panel per limit state, the strategies side by side: the
+  fitted lognormal, its confidence band, and the observed fraction at each level.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orchestration.ida_study.fragility import Fit
+from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
+from orchestration.ida_study.ida_records import IdaInfo
+
+COLORS = ("0.25", "tab:blue", "tab:red", "tab:purple", "tab:green", "tab:orange", "tab:brown", "tab:cyan")
+STYLES = {"passive-off": ":", "passive-on": "--"}
+
+
+def im_label(info: IdaInfo) -> str:
+    """The intensity axis' label."""
+    if info.measure == "sa":
+        return f"Sa(T1 = {info.period_s:.3g} s, {100 * info.config['intensity']['damping']:g} %) [g]"
+    return "PGA [g]"
+
+
+def threshold_text(quantity: str, threshold: float) -> str:
+    """A limit state's threshold in its unit (mm for displacements)."""
+    _, _, unit = QUANTITIES[quantity]
+    return f"{1e3 * threshold:g} mm" if unit == "m" else f"{threshold:g} {unit}"
+
+
+def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies: list[str]) -> None:
+    """IDA curves, one panel per strategy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    levels = sorted({r["intensity"] for r in rows})
+    fig, axes = plt.subplots(1, len(strategies), figsize=(4.2 * len(strategies), 4.2), sharey=True, squeeze=False)
+    for ax, s in zip(axes[0], strategies, strict=True):
+        mine = [r for r in rows if r["strategy"] == s]
+        medians = []
+        for comp in sorted({r["record_id"] for r in mine}):
+            pts = sorted((r["intensity"], r["x_base_mm"]) for r in mine
+                         if r["record_id"] == comp and r["x_base_mm"] is not None)
+            if pts:
+                ax.plot([p[1] for p in pts], [p[0] for p in pts], color="0.6", lw=0.6, alpha=0.7)
+        for level in levels:
+            vals = [r["x_base_mm"] for r in mine if r["intensity"] == level and r["x_base_mm"] is not None]
+            medians.append(float(np.median(vals)) if vals else math.nan)
+        ax.plot(medians, levels, color="k", lw=2.2, marker="o", ms=3, label="median")
+        for x, name in ((8.0, "identified 8 mm"), (15.0, "device limit 15 mm")):
+            ax.axvline(x, color="tab:orange" if x == 8.0 else "tab:red", ls="--", lw=1, label=name)
+        ax.set_xscale("log")
+        ax.set_title(s)
+        ax.set_xlabel("peak isolator displacement [mm]")
+        ax.grid(alpha=0.3, which="both")
+    axes[0][0].set_ylabel(im_label(info))
+    axes[0][0].legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"{info.name}: IDA curves ({len({r['record_id'] for r in rows})} components)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> None:
+    """Fragility curves per limit state, strategies side by side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    levels = np.asarray(spec.intensity.levels, dtype=float)
+    x = np.geomspace(levels[0] / 2, levels[-1] * 1.5, 200)
+    names = list(fits)
+    fig, axes = plt.subplots(1, len(names), figsize=(4.4 * len(names), 4.0), sharey=True, squeeze=False)
+    for ax, name in zip(axes[0], names, strict=True):
+        ls = spec.limit_states[name]
+        for k, (s, fit) in enumerate(fits[name].items()):
+            color = COLORS[k % len(COLORS)]
+            frac = [(st.level, st.k / st.n) for st in fit.stripes if st.n]
+            ax.plot([f[0] for f in frac], [f[1] for f in frac], "o", color=color, ms=4, alpha=0.8)
+            if fit.ok:
+                lo, hi = fit.band(x)
+                ax.fill_between(x, lo, hi, color=color, alpha=0.12, lw=0)
+                ax.plot(x, fit.probability(x), color=color, ls=STYLES.get(s, "-"),
+                        label=f"{s}: θ={fit.theta:.3g} g, β={fit.beta:.2f}")
+            else:
+                ax.plot([], [], "o", color=color, label=f"{s}: {fit.kind}")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(f"{ls.label or name}\n({ls.quantity.replace('_', ' ')} > "
+                     f"{threshold_text(ls.quantity, ls.threshold)})", fontsize=9)
+        ax.set_xlabel(im_label(info))
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0][0].set_ylabel("P(exceed)")
+    fig.suptitle(f"{info.name}: fragility, lognormal MLE with {100 * spec.confidence:g} % band", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

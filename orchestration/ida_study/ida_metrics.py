@@ -1,0 +1,159 @@
+"""The numbers of an IDA study: a row per run (results.parquet/.csv) and the fragility fits (fragility.csv).
+
+Rows are plain column -> value dicts in the order of :data:`COLUMNS` (the table files'
+columns); indices are against passive-off at the same component and level.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from mre_common.atomic_files import atomic_write
+from orchestration.case_study.analysis import INDEX_COLUMNS, indices
+from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
+from orchestration.ida_study.ida_records import ComponentInfo, RunOutcome
+from orchestration.master.runfolder import write_text
+
+if TYPE_CHECKING:
+    from orchestration.ida_study.fragility import Fit
+
+PEAKS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "drift_max_mm", "acc_0", "acc_1", "acc_2", "acc_3",
+         "acc_max", "base_shear_N", "structure_shear_N", "isolator_force_N", "current_max_A", "current_mean_A",
+         "rms_x_base_mm", "rms_acc_max", "time_beyond_8mm_s", "time_beyond_15mm_s")
+COLUMNS = ("record", "component", "record_id", "intensity_measure", "intensity", "im_unscaled", "scale",
+           "strategy", *PEAKS, *INDEX_COLUMNS[2:], "status", "error", "wall_time_s", "end_time_s", "key")
+ENDED = ("ok", "diverged")  # runs that count in the fragility stripes
+
+
+def run_label(component_id: str, level: float, strategy: str) -> str:
+    """A run's label: ``record_id/level/strategy``."""
+    return f"{component_id}/{level:g}/{strategy}"
+
+
+def _no_none(metrics: dict[str, Any]) -> dict[str, float]:
+    return {k: (math.nan if x is None else x) for k, x in metrics.items()}
+
+
+def result_row(comp: ComponentInfo, measure: str, level: float, strategy: str, res: RunOutcome | None,
+               off_metrics: dict[str, Any] | None) -> dict[str, Any]:
+    """The row (COLUMNS) of one run; ``off_metrics``: passive-off's at the same component and level, if it ran."""
+    label = run_label(comp.id, level, strategy)
+    row: dict[str, Any] = {"record": comp.record, "component": comp.component, "record_id": comp.id,
+                           "intensity_measure": measure, "intensity": level, "im_unscaled": comp.im,
+                           "scale": level / comp.im, "strategy": strategy, "key": label}
+    if res is None:
+        row.update(status="not run", error="not run (interrupted)")
+    elif not res.ok:
+        row.update(status=res.status, error=res.error, wall_time_s=res.wall_time_s)
+    else:
+        v = res.value or {}
+        m = v.get("metrics") or {}
+        row.update({k: m.get(k) for k in PEAKS})
+        row.update(status=v["status"], error=v.get("error"), wall_time_s=res.wall_time_s,
+                   end_time_s=v.get("end_time_s"))
+        if off_metrics and v["status"] == "ok" and m:
+            row.update(indices(_no_none(m), _no_none(off_metrics)))
+    return {c: row.get(c) for c in COLUMNS}
+
+
+def result_rows(components: list[ComponentInfo], measure: str, results: dict[str, RunOutcome], levels: list[float],
+                strategies: list[str]) -> list[dict[str, Any]]:
+    """One row per run (COLUMNS), component by component, level by level, strategy by strategy."""
+    rows = []
+    for comp in components:
+        for level in levels:
+            off = results.get(run_label(comp.id, level, "passive-off"))
+            off_metrics = off.value["metrics"] if off and off.ok and off.value["status"] == "ok" else None
+            rows += [result_row(comp, measure, level, s, results.get(run_label(comp.id, level, s)), off_metrics)
+                     for s in strategies]
+    return rows
+
+
+def exceeded(row: dict[str, Any], quantity: str, threshold: float) -> bool | None:
+    """Did a run exceed a limit state? None if the run does not count (failed, not run)."""
+    if row["status"] == "diverged":
+        return True
+    if row["status"] != "ok":
+        return None
+    column, factor, _ = QUANTITIES[quantity]
+    value = row.get(column)
+    return None if value is None else bool(value * factor > threshold)
+
+
+def fragilities(rows: list[dict[str, Any]], spec: IdaSpec) -> dict[str, dict[str, Fit]]:
+    """Limit state -> strategy -> fitted fragility."""
+    from orchestration.ida_study.fragility import Stripe, fit_fragility  # scipy.stats: only when needed
+
+    out: dict[str, dict[str, Fit]] = {}
+    for name, ls in spec.limit_states.items():
+        out[name] = {}
+        for s in spec.strategy_names:
+            stripes = []
+            for level in spec.intensity.levels:
+                marks = [exceeded(r, ls.quantity, ls.threshold) for r in rows
+                         if r["strategy"] == s and r["intensity"] == level]
+                counted = [m for m in marks if m is not None]
+                stripes.append(Stripe(level, len(counted), sum(counted)))
+            out[name][s] = fit_fragility(stripes, spec.confidence)
+    return out
+
+
+def fragility_rows(fits: dict[str, dict[str, Fit]], spec: IdaSpec) -> list[dict[str, Any]]:
+    """The table of fragility.csv: one row per limit state and strategy."""
+    rows = []
+    for name, by_strategy in fits.items():
+        ls = spec.limit_states[name]
+        for s, fit in by_strategy.items():
+            lo, hi = fit.theta_interval() if fit.ok else (math.nan, math.nan)
+            rows.append({"limit_state": name, "quantity": ls.quantity, "threshold": ls.threshold, "strategy": s,
+                         "fit": fit.kind, "median": fit.theta if fit.ok else None, "beta": fit.beta if fit.ok else None,
+                         "median_low": lo, "median_high": hi, "confidence": fit.confidence,
+                         "between_low": fit.bounds[0] if fit.kind == "separated" else None,
+                         "between_high": fit.bounds[1] if fit.kind == "separated" else None,
+                         "stripes": " ".join(f"{st.level:g}:{st.k}/{st.n}" for st in fit.stripes), "note": fit.note})
+    return rows
+
+
+def table_csv(columns: tuple[str, ...] | list[str], rows: list[dict[str, Any]]) -> str:
+    """CSV text (quoted where needed; floats at full precision, missing as empty)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        cells = []
+        for c in columns:
+            v = row.get(c)
+            cells.append("" if v is None or (isinstance(v, float) and math.isnan(v)) else
+                         repr(float(v)) if isinstance(v, float) else v)
+        writer.writerow(cells)
+    return buf.getvalue()
+
+
+def write_tables(folder: Path, rows: list[dict[str, Any]]) -> None:
+    """results.parquet (pyarrow) and results.csv, each written to a temporary name and renamed."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    schema = pa.schema([(c, pa.string() if c in ("record", "component", "record_id", "intensity_measure",
+                                                  "strategy", "status", "error", "key") else pa.float64())
+                        for c in COLUMNS])
+    table = pa.Table.from_pylist([{c: (float(r[c]) if r[c] is not None and schema.field(c).type == pa.float64()
+                                       else r[c]) for c in COLUMNS} for r in rows], schema=schema)
+    atomic_write(folder / "results.parquet", lambda f: pq.write_table(table, f), binary=True)
+    write_text(folder / "results.csv", table_csv(COLUMNS, rows))
+
+
+def read_rows(folder: Path) -> list[dict[str, Any]]:
+    """The runs of a study folder (results.parquet)."""
+    import pyarrow.parquet as pq
+
+    rows = pq.read_table(folder / "results.parquet").to_pylist()
+    for r in rows:
+        for k, v in r.items():
+            if isinstance(v, float) and math.isnan(v):
+                r[k] = None
+    return rows

@@ -1,0 +1,213 @@
+"""An IDA study checked and planned before anything runs: its record components and every run's plan.
+
+:func:`prepare_ida` reads the suite, cuts each component to its strong-motion window and
+stages it as a record file, plans every component x strategy through the engine's checks
+and measures each component's intensity at scale 1; whatever is wrong is reported at once
+(ScenarioError listing every problem), before a worker starts.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from components.physics.shear_building_core import BuildingParams
+from orchestration.batch.portable import PortablePlan, portable
+from orchestration.case_study.case_jobs import OUTPUTS_OVERRIDE
+from orchestration.case_study.strategies import strategy_overrides
+from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
+from orchestration.engine_hooks import plan_scenario
+from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
+from orchestration.ida_study.intensity import isolated_period, measure
+from orchestration.ida_study.suites import (
+    SuiteRecord,
+    Window,
+    choose_window,
+    load_suite,
+    record_csv,
+    stop_time,
+    windowed,
+)
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.scenario import load_scenario
+
+
+@dataclass
+class RecordComponent:
+    """One record component of the suite as the study plays it (not a unit of the co-simulation)."""
+
+    rec: SuiteRecord
+    window: Window
+    stop_time_s: float
+    im: float  # intensity of the windowed component at scale 1 [g]
+    csv: Path  # staged record file
+
+
+@dataclass
+class PreparedIda:
+    """Everything checked, every run planned: nothing is left that could be a configuration error."""
+
+    study: LoadedIda
+    components: list[RecordComponent]
+    strategies: dict[str, tuple[str, ...]]
+    period_s: float | None
+    plans: dict[tuple[str, str], PortablePlan]
+    masses: list[float]
+    gains: dict[str, Any] | None
+    staging: Path
+    planning_s: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    def cleanup(self) -> None:
+        shutil.rmtree(self.staging, ignore_errors=True)
+
+
+def _masses(plan: Any) -> list[float]:
+    m = list(BuildingParams.dyke().m)
+    for name, value in plan.parameters.get("building", {}).items():
+        kind, _, j = name.partition("_")
+        if kind == "m" and j.isdigit():
+            while len(m) <= int(j):
+                m.append(m[-1])
+            m[int(j)] = float(value)
+    return m
+
+
+def _suite(path: Path, spec: IdaSpec | None, raw: Any, problems: list[Problem]) -> list[SuiteRecord]:
+    """The suite's records (problems appended); without a spec, a folder suite and the file's kind are checked."""
+    if spec is not None:
+        suite = spec.suite if isinstance(spec.suite, str) else spec.suite.model_dump()
+        records, found = load_suite(suite, path.parent)
+        problems += found
+        return records
+    if isinstance(raw, dict):
+        if isinstance(raw.get("suite"), dict) and isinstance(raw["suite"].get("folder"), str):
+            _, found = load_suite(raw["suite"], path.parent)
+            problems += found
+        for key, tool in (("records", "study.py"), ("units", "run.py")):
+            if key in raw:
+                problems.append(Problem(f"this looks like a file for {tool} (it has '{key}'), not an IDA study",
+                                        key, str(path)))
+    return []
+
+
+def _strategies(loaded: LoadedIda, problems: list[Problem]) -> tuple[dict[str, tuple[str, ...]], dict | None]:
+    """Strategy -> scenario overrides, and the SOSM gains document (None without sosm or unreadable)."""
+    spec = loaded.spec
+    gains_doc = None
+    if "sosm" in spec.strategy_names:
+        try:
+            gains, gains_doc = read_gains(loaded.resolve(spec.gains))
+            if abs(gains.i_max - spec.i_max) > 1e-12:
+                problems.append(Problem(f"gains tuned for i_max = {gains.i_max} A, the study uses {spec.i_max} A: "
+                                        "re-run the tuning", "gains"))
+        except ScenarioError as exc:
+            problems += exc.problems
+    strategies: dict[str, tuple[str, ...]] = {}
+    for s in spec.strategies:
+        if isinstance(s, str):
+            if s == "sosm" and gains_doc is None:
+                continue
+            strategies[s] = strategy_overrides(s, spec.i_max, gains_doc["gains"] if gains_doc else None, None)
+        else:
+            strategies[s.name] = tuple(s.overrides)
+    return strategies, gains_doc
+
+
+def _stage(records: list[SuiteRecord], spec: IdaSpec, step: float, staging: Path) -> list[RecordComponent]:
+    """Each record cut to its window, written to ``staging/records/<id>.csv``; intensities still unknown (nan)."""
+    (staging / "records").mkdir()
+    components = []
+    for rec in records:
+        window = choose_window(rec, spec.window.strong_motion)
+        played = windowed(rec, window)
+        csv = staging / "records" / f"{rec.id}.csv"
+        csv.write_text(record_csv(played, f"{rec.source}\nwindow {window.start:.3f}-{window.end:.3f} s of the "
+                                          f"record, shifted to t = 0 (strong motion: {spec.window.strong_motion})"))
+        components.append(RecordComponent(rec, window, stop_time(window, spec.time_scale, spec.window.tail_s, step),
+                                          math.nan, csv))
+    return components
+
+
+def _plans(components: list[RecordComponent], strategies: dict[str, tuple[str, ...]], scenario: Path,
+           common: tuple[str, ...], problems: list[Problem]) -> dict[tuple[str, str], PortablePlan]:
+    """(component id, strategy) -> checked portable plan; a strategy's problems are reported once."""
+    plans: dict[tuple[str, str], PortablePlan] = {}
+    failing: set[str] = set()
+    for c in components:
+        for name, extra in strategies.items():
+            if name in failing:
+                continue
+            try:
+                plan = plan_scenario(scenario, (*common, *extra, f"ground.record=!record {c.csv}",
+                                                f"simulation.stop_time={c.stop_time_s!r}", OUTPUTS_OVERRIDE))
+            except ScenarioError as exc:
+                failing.add(name)
+                problems += [Problem(f"strategy {name}: {p.message}", p.key, p.file, p.line) for p in exc.problems]
+                continue
+            plans[(c.rec.id, name)] = portable(plan)
+    return plans
+
+
+def _measure(components: list[RecordComponent], spec: IdaSpec, first: Any, problems: list[Problem]) -> float | None:
+    """Each component's intensity at scale 1 (set in place); returns the period of Sa [s] (None for PGA)."""
+    intensity = spec.intensity
+    period = intensity.period_s
+    if intensity.measure == "sa" and period is None:
+        try:
+            setup = system_setup(first, 0.0)
+        except (NotMonolithic, KeyError) as exc:
+            raise ScenarioError(Problem(f"the isolated period cannot be computed for this system ({exc}): "
+                                        "give intensity.period_s", "intensity.period_s")) from None
+        period = isolated_period(setup.building, setup.coeffs, setup.n_isolators, intensity.period_current_A,
+                                 intensity.period_displacement_m)
+    for c in components:
+        c.im = measure(windowed(c.rec, c.window), intensity.measure, spec.time_scale, period, intensity.damping)
+        if not (math.isfinite(c.im) and c.im > 0):
+            problems.append(Problem(f"record {c.rec.id} has no motion ({intensity.measure} = {c.im})", "suite"))
+    return period
+
+
+def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], raw: Any) -> PreparedIda:
+    """Check the whole study and plan every run; ScenarioError listing every problem (nothing computed).
+
+    ``path`` is the study file, ``problems`` those found reading it (``loaded`` is None then)
+    and ``raw`` its data: a folder suite is checked even when other keys are wrong.
+    """
+    started = time.perf_counter()
+    problems = list(problems)
+    spec = loaded.spec if loaded is not None else None
+    records = _suite(path, spec, raw, problems)
+    if spec is None or loaded is None:
+        raise ScenarioError(problems)
+    strategies, gains_doc = _strategies(loaded, problems)
+    scenario = loaded.resolve(spec.scenario)
+    common = (*spec.overrides, f"isolator.i_max={spec.i_max!r}", f"controller.i_max={spec.i_max!r}",
+              f"ground.time_scale={spec.time_scale!r}")
+    step = None
+    try:
+        step = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation.step
+    except ScenarioError as exc:
+        problems += exc.problems
+    if problems or not records or step is None:
+        raise ScenarioError(problems or [Problem("the suite has no record", "suite")])
+    staging = Path(tempfile.mkdtemp(prefix="mre-cosim-ida-"))
+    try:
+        components = _stage(records, spec, step, staging)
+        plans = _plans(components, strategies, scenario, common, problems)
+        if problems:
+            raise ScenarioError(problems)
+        first = plans[(components[0].rec.id, next(iter(strategies)))].plan
+        period = _measure(components, spec, first, problems)
+        if problems:
+            raise ScenarioError(problems)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return PreparedIda(loaded, components, strategies, period, plans, _masses(first), gains_doc, staging,
+                       time.perf_counter() - started)

@@ -1,0 +1,255 @@
+"""Incremental dynamic analysis and fragility: ``python orchestration/ida.py scenarios/ida.yaml``.
+
+Every component of a record suite (:mod:`orchestration.ida_study.suites`), cut to its
+strong-motion window and played at the study's time scale, is scaled to each level of an
+intensity ladder (PGA, or Sa at the isolated period: :mod:`orchestration.ida_study.intensity`)
+and run as a co-simulation through the master for each strategy, on the Dask batch pool
+(:mod:`orchestration.batch.pool`), each run in a child process of a worker. The study
+folder gets:
+
+| file | content |
+|---|---|
+| ``results.parquet``, ``.csv`` | a row per run: record, component, intensity, strategy, peaks, indices, status, time |
+| ``fragility.csv`` | per limit state and strategy: stripes, the lognormal fit (median, beta, its interval) |
+| ``figures/`` | ``ida_curves.png`` (per strategy), ``fragility.png`` (per limit state, strategies side by side) |
+| ``report.md``, ``report.html`` | settings, fits, a verdict per limit state, failed runs |
+| ``ida.json`` | configuration, suite, windows, period, intensities, provenance, batch pool |
+| ``records/`` | the windowed components the runs played (``time_s,accel_g``) |
+| ``jobs/`` | each finished run's result under its content key (``--resume``) |
+
+Exit codes: 0 every run ended (complete, or stopped by the scenario's divergence limit,
+which counts as exceeding every limit state); 1 some runs failed or were lost, or the
+study was interrupted (the report says which; the rest is complete); 2 configuration
+error, unreachable scheduler (nothing computed, nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
+from orchestration.batch.portable import file_bytes, job_key, plan_content
+from orchestration.batch.store import ResultStore
+from orchestration.ida_study import ida_jobs
+from orchestration.ida_study.ida_config import IdaSpec, LoadedIda, load_ida
+from orchestration.ida_study.ida_jobs import ida_job
+from orchestration.ida_study.ida_metrics import ENDED, read_rows, result_rows, run_label
+from orchestration.ida_study.ida_plan import PreparedIda, RecordComponent, prepare_ida
+from orchestration.ida_study.ida_records import ComponentInfo, IdaInfo, RunOutcome, utc_now
+from orchestration.ida_study.ida_report import write_outputs
+from orchestration.ida_study.intensity import MEASURES
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
+from orchestration.provenance import provenance
+
+
+@dataclass(frozen=True)
+class PendingRun:
+    """A run whose result is not stored yet: its content key, component, strategy and amplitude scale."""
+
+    key: str
+    component: RecordComponent
+    strategy: str
+    scale: float
+
+
+def new_info(prepared: PreparedIda, pool: BatchPool, command: list[str], resumed: IdaInfo | None) -> IdaInfo:
+    """The study's description as it starts (``resumed``: the ida.json of an earlier run of the folder)."""
+    spec = prepared.study.spec
+    info = IdaInfo(
+        name=spec.name, description=spec.description, study_file=str(prepared.study.path), started=utc_now(),
+        config=spec.model_dump(mode="json"), measure=spec.intensity.measure,
+        measure_label=MEASURES[spec.intensity.measure], period_s=prepared.period_s,
+        strategies={s: list(o) for s, o in prepared.strategies.items()}, masses_kg=prepared.masses,
+        gains=prepared.gains, planning_s=prepared.planning_s,
+        components=[ComponentInfo(c.rec.id, c.rec.record, c.rec.component, c.rec.source,
+                                  (c.window.start, c.window.end), c.stop_time_s, c.im, c.rec.pga_g)
+                    for c in prepared.components],
+        batch={"scheduler": pool.scheduler, "workers": pool.n_workers, "dashboard": pool.dashboard},
+        provenance={**provenance(), "command": command})
+    if resumed is not None:
+        info.started = resumed.started
+        info.resumed = [*(resumed.resumed or []), utc_now()]
+    return info
+
+
+def plan_runs(prepared: PreparedIda, store: ResultStore) -> tuple[list[PendingRun], dict[str, RunOutcome],
+                                                                  dict[str, str]]:
+    """Every run, longest first: those to compute, the stored results (by label) and {content key: label}."""
+    spec = prepared.study.spec
+    pending, stored, labels = [], {}, {}
+    for c in sorted(prepared.components, key=lambda c: -c.stop_time_s):
+        for level in spec.intensity.levels:
+            for s in prepared.strategies:
+                pp = prepared.plans[(c.rec.id, s)]
+                label = run_label(c.rec.id, level, s)
+                scale = level / c.im
+                key = job_key("ida", {"job": label, "plan": plan_content(pp), "scale": scale,
+                                      "masses": prepared.masses}, ida_jobs.CODE_SOURCES)
+                labels[key] = label
+                old = store.get(key)
+                if old is not None:
+                    stored[label] = RunOutcome.from_json(old)
+                else:
+                    pending.append(PendingRun(key, c, s, scale))
+    return pending, stored, labels
+
+
+def payloads(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun]) -> list[dict[str, Any]]:
+    """The jobs' payloads, every file and plan shared once on the pool."""
+    plans = {(run.component.rec.id, run.strategy): prepared.plans[(run.component.rec.id, run.strategy)]
+             for run in pending}
+    files = {sha: pool.share(path.read_bytes()) for sha, path in file_bytes(list(plans.values())).items()}
+    shared = {k: pool.share(pp, dedupe=False) for k, pp in plans.items()}
+    return [{"plan": shared[(run.component.rec.id, run.strategy)],
+             "files": {sha: files[sha] for sha in plans[(run.component.rec.id, run.strategy)].shas},
+             "scale": run.scale, "masses": prepared.masses} for run in pending]
+
+
+def compute(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun], labels: dict[str, str],
+            store: ResultStore, results: dict[str, RunOutcome], bar: ProgressBar) -> bool:
+    """Run the pending runs on the pool, each result stored as it ends; True if interrupted (Ctrl-C)."""
+
+    def done(res: JobResult) -> None:
+        outcome = RunOutcome(labels[res.key], res.ok, res.status, res.value, res.error, res.wall_time_s, res.worker)
+        store.put(res.key, outcome.to_json())
+        results[outcome.label] = outcome
+        bar.done(outcome.run_status in ENDED)
+        if outcome.run_status not in ENDED:
+            bar.write(f"FAILED {outcome.label}: {res.error or res.value.get('error')}")
+
+    try:
+        if pending:
+            costs = [prepared.plans[(run.component.rec.id, run.strategy)].plan.loaded.scenario.simulation.n_steps
+                     for run in pending]
+            pool.map(ida_job, payloads(prepared, pool, pending), [run.key for run in pending], isolate=True,
+                     timeout_s=prepared.study.spec.timeout_s, on_done=done, costs=costs)
+    except KeyboardInterrupt:
+        bar.write("interrupted: writing the report of the finished runs")
+        return True
+    return False
+
+
+def run_ida(prepared: PreparedIda, folder: Path, pool: BatchPool, progress: bool, command: list[str],
+            resumed: IdaInfo | None = None) -> int:
+    """Run every run of a prepared study into ``folder``; returns the exit code."""
+    spec = prepared.study.spec
+    (folder / "records").mkdir(exist_ok=True)
+    for c in prepared.components:
+        shutil.copyfile(c.csv, folder / "records" / c.csv.name)
+    info = new_info(prepared, pool, command, resumed)
+    write_json(folder / "ida.json", info.to_json())
+    store = ResultStore(folder)
+    pending, results, labels = plan_runs(prepared, store)
+    total = len(prepared.components) * len(spec.intensity.levels) * len(prepared.strategies)
+    bar = ProgressBar(total, spec.name, initial=total - len(pending), enabled=progress)
+    bar.write(pool.describe())
+    if len(pending) < total:
+        bar.write(f"resumed: {total - len(pending)} of {total} runs already stored")
+    t0 = time.perf_counter()
+    interrupted = compute(prepared, pool, pending, labels, store, results, bar)
+    bar.close()
+    info.finished = utc_now()
+    info.interrupted = interrupted
+    info.wall_time_s = time.perf_counter() - t0
+    info.runs_computed = sum(1 for run in pending if labels[run.key] in results)
+    write_json(folder / "ida.json", info.to_json())
+    rows = result_rows(info.components, info.measure, results, list(spec.intensity.levels), list(prepared.strategies))
+    write_outputs(folder, info, rows)
+    bad = [r for r in rows if r["status"] not in ENDED]
+    print(f"IDA {'interrupted' if interrupted else 'done'}: {folder} ({len(rows)} runs, {len(bad)} not ended: "
+          f"failed, lost or not run; {info.wall_time_s:.0f} s)")
+    return 1 if bad or interrupted else 0
+
+
+# -- command line ---------------------------------------------------------------------------------
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """Command-line arguments."""
+    parser = argparse.ArgumentParser(prog="ida.py", description="Incremental dynamic analysis and fragility.")
+    parser.add_argument("study", type=Path, nargs="?", help="IDA study YAML file (scenarios/ida.yaml)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a study key (VALUE as YAML), e.g. --set 'intensity.levels=[0.1, 0.2]'")
+    parser.add_argument("--out", type=Path, help="study folder to create (must not exist or be empty)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on an existing Dask cluster (default: DASK_SCHEDULER_ADDRESS, else a local one)")
+    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: one per core)")
+    parser.add_argument("--resume", type=Path, metavar="DIR", help="finish a study folder: compute what is missing")
+    parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate tables, figures and report of DIR")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
+        parser.error("give a study file, or --resume DIR, or --report DIR")
+    return args
+
+
+def regenerate(folder: Path) -> int:
+    """``--report DIR``: tables, figures and report of a study folder again, from its data; the exit code."""
+    try:
+        info = IdaInfo.from_json(json.loads((folder / "ida.json").read_text()))
+        rows = read_rows(folder)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        print(f"error: cannot read the study folder {folder}: {exc}", file=sys.stderr)
+        return 2
+    write_outputs(folder, info, rows)
+    print(f"report regenerated: {folder / 'report.md'}")
+    return 0
+
+
+def load(args: argparse.Namespace) -> tuple[PreparedIda, IdaInfo | None]:
+    """The study the arguments name (a file, or the folder to resume), prepared; ScenarioError if unusable."""
+    resumed = None
+    if args.resume is not None:
+        try:
+            resumed = IdaInfo.from_json(json.loads((args.resume / "ida.json").read_text()))
+            study_file = Path(resumed.study_file)
+            loaded, problems, raw = LoadedIda(IdaSpec.model_validate(resumed.config), study_file), [], None
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ScenarioError(f"{args.resume} is not an IDA study folder that can be resumed: "
+                                f"{type(exc).__name__}: {exc}") from None
+    else:
+        study_file = args.study.resolve()
+        loaded, problems, raw = load_ida(study_file, tuple(args.overrides))
+    return prepare_ida(study_file, loaded, problems, raw), resumed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point; returns the exit code."""
+    args = parse_args(argv)
+    if args.report is not None:
+        return regenerate(args.report)
+    prepared = None
+    try:
+        prepared, resumed = load(args)
+        spec = prepared.study.spec
+        if args.workers is not None and args.workers < 1:
+            raise ScenarioError(Problem("--workers must be at least 1", "", "command line"))
+        pool = BatchPool(scheduler_address(args.scheduler), args.workers or spec.workers,
+                         max_worker_deaths=spec.max_worker_deaths, preload=(ida_jobs.__name__,))
+        pool.start()
+    except (ScenarioError, BatchUnavailable) as exc:
+        if prepared is not None:
+            prepared.cleanup()
+        print(exc.report() if isinstance(exc, ScenarioError) else f"error: {exc} (nothing computed)", file=sys.stderr)
+        return 2
+    try:
+        folder = args.resume if args.resume is not None else new_run_folder(Path(spec.output), spec.name, args.out)
+    except RunFolderExists as exc:
+        pool.close()
+        prepared.cleanup()
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+    # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
+    try:
+        return run_ida(prepared, folder, pool, not args.quiet, [sys.executable, *sys.argv], resumed)
+    finally:
+        pool.close()
+        prepared.cleanup()

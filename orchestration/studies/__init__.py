@@ -1,1 +1,0 @@
-"""Studies built on the master: the case study, SOSM tuning, sweeps."""

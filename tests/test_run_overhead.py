@@ -1,0 +1,167 @@
+"""What a run pays besides stepping (issue 25): imports it does not use, figures drawn beside the CSV.
+
+The figures are drawn by forked plot processes (:class:`orchestration.master.report.PlotProcess`)
+that read the rows from storage shared with the run; they must write the same PNG bytes as
+drawing in the run's own process, and a plot process that fails must cost the figures only.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.build import pythonfmu_units
+from orchestration.engine_hooks import plan_scenario
+from orchestration.master import report
+from orchestration.master.report import ReportHook, decimate
+from orchestration.master.session import run_plan
+
+from .conftest import PROJECT
+
+KOBE = PROJECT / "scenarios" / "kobe.yaml"
+SHORT = ("simulation.stop_time=6",)  # 6001 rows: more than a decimated line's 4000 points
+
+
+def _run_in_subprocess(code: str) -> dict:
+    done = subprocess.run([sys.executable, "-c", code], cwd=PROJECT, capture_output=True, text=True, check=False,
+                          env={**os.environ, "PYTHONPATH": str(PROJECT)})
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+_COMMAND = """
+import json, sys
+from orchestration import run
+code = run.main([{scenario!r}, "--set", "simulation.stop_time=1", "--out", {out!r}, "--quiet", *{extra!r}])
+heavy = ("matplotlib", "matplotlib.pyplot", "scipy.signal", "scipy.stats", "scipy.optimize", "PIL")
+print(json.dumps({{"code": code, "loaded": [m for m in heavy if m in sys.modules]}}))
+"""
+
+
+@pytest.mark.parametrize("extra", [["--no-plots"], []])
+def test_a_run_imports_neither_matplotlib_nor_the_cores_of_units_it_does_not_use(tmp_path, extra):
+    """With or without plots the run's own process imports no matplotlib (a forked plot process draws), and the
+    FMU staleness check reads the shells' sources instead of importing every unit's core (scipy.signal, ...)."""
+    out = tmp_path / "run"
+    answer = _run_in_subprocess(_COMMAND.format(scenario=str(KOBE), out=str(out), extra=extra))
+    assert answer == {"code": 0, "loaded": []}
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    assert pngs == ([] if extra else ["current.png", "drifts.png", "isolator_hysteresis.png",
+                                      "top_floor_acceleration.png"])
+
+
+def test_shells_read_from_source_are_the_shells_as_imported():
+    """Every shell's class, constants and state methods, read without running it, are what importing it gives."""
+    scripts = sorted(pythonfmu_units.SHELLS_DIR.glob("*_fmu.py"))
+    assert scripts
+    for script in scripts:
+        read = pythonfmu_units._read_shell(script)
+        assert read is not None, script
+        name, constants, methods = pythonfmu_units._shell_by_running(script)
+        assert read[0] == name and read[1] == constants, script
+        for method in ("_get_fmu_state", "_set_fmu_state"):
+            assert (method in read[2]) == (method in methods), (script, method)
+
+
+def test_a_shell_with_computed_constants_is_imported_instead(tmp_path):
+    script = tmp_path / "odd_fmu.py"
+    script.write_text("from pythonfmu import Fmi2Slave\nFMU_CORE_MODULES = tuple(['a_core'])\n"
+                      "class Odd(Fmi2Slave):\n    pass\n")
+    assert pythonfmu_units._read_shell(script) is None
+    name, constants, _ = pythonfmu_units._shell_by_running(script)
+    assert (name, constants["FMU_CORE_MODULES"]) == ("Odd", ("a_core",))
+
+
+def _buckets_by_loop(t: np.ndarray, y: np.ndarray, max_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """The decimation's definition, one bucket at a time: each bucket's first minimum and first maximum."""
+    n = len(t)
+    if n <= max_points:
+        return t, y
+    edges = np.linspace(0, n, max_points // 2 + 1).astype(np.intp)
+    keep = [lo + f(y[lo:hi]) for lo, hi in itertools.pairwise(edges) if hi > lo for f in (np.argmin, np.argmax)]
+    idx = np.unique(np.asarray(keep, dtype=np.intp))
+    return t[idx], y[idx]
+
+
+@pytest.mark.parametrize("n", [4001, 4003, 9999, 150_001])
+def test_decimation_keeps_each_buckets_first_minimum_and_maximum(n):
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 1e-3
+    for y in (rng.normal(size=n), np.round(rng.normal(size=n)), np.zeros(n)):
+        y[rng.integers(0, n, 9)] = np.nan
+        y[rng.integers(0, n, 3)] = np.inf
+        y[rng.integers(0, n, 3)] = -np.inf
+        for max_points in (4000, 11, 2):
+            td, yd = decimate(t, y, max_points)
+            te, ye = _buckets_by_loop(t, y, max_points)
+            assert np.array_equal(td, te) and np.array_equal(yd, ye, equal_nan=True)
+
+
+@pytest.mark.slow
+def test_figures_drawn_by_plot_processes_are_the_bytes_drawn_in_process(tmp_path, monkeypatch):
+    plan = plan_scenario(KOBE, SHORT)
+    forked = run_plan(plan, tmp_path / "forked")
+    monkeypatch.setattr(report.PlotProcess, "available", staticmethod(lambda: False))
+    inline = run_plan(plan, tmp_path / "inline")
+    assert forked.result.complete and inline.result.complete
+    names = sorted(p.name for p in (tmp_path / "inline").glob("*.png"))
+    assert len(names) == 4
+    assert sorted(p.name for p in (tmp_path / "forked").glob("*.png")) == names
+    for name in names:
+        assert (tmp_path / "forked" / name).read_bytes() == (tmp_path / "inline" / name).read_bytes(), name
+    csv = "timeseries.csv"
+    assert (tmp_path / "forked" / csv).read_bytes() == (tmp_path / "inline" / csv).read_bytes()
+    assert not [p.name for p in (tmp_path / "forked").iterdir() if p.name.endswith(".tmp.png")]
+
+
+def _raises(spec, rec, run, figures) -> None:
+    raise ZeroDivisionError("a bug in the figures")
+
+
+def _dies(spec, rec, run, figures) -> None:
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+@pytest.mark.parametrize(("draw", "said"), [(_raises, "ZeroDivisionError: a bug in the figures"),
+                                            (_dies, "killed by SIGKILL")])
+def test_a_plot_process_that_fails_costs_the_figures_only_and_the_run_says_so(tmp_path, draw, said):
+    plan = plan_scenario(KOBE, SHORT)
+    hook = plan.report_hook
+    plan = replace(plan, report_hook=ReportHook(hook.model, hook.summarize, draw))
+    outcome = run_plan(plan, tmp_path / "run")
+    folder = tmp_path / "run"
+    assert outcome.result.status == "failed" and not outcome.result.complete
+    assert "plots (*.png)" in str(outcome.result.error) and said in str(outcome.result.error)
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["complete"] is False and said in summary["error"]
+    assert summary["steps_done"] == 6000 and summary["peak_base_displacement_m"] > 0  # the run itself is whole
+    rows = (folder / "timeseries.csv").read_text().splitlines()
+    assert len(rows) == 6002 and rows[0].startswith("time,")
+    assert json.loads((folder / "manifest.json").read_text())["complete"] is False
+
+
+def test_a_cancelled_plot_process_exits_and_draws_nothing(tmp_path):
+    calls = tmp_path / "calls"
+
+    def draw(rows: int, share: tuple[int, int]) -> list[Path]:
+        calls.write_text("called")
+        return []
+
+    plotter = report.PlotProcess.start(draw)
+    if plotter is None:
+        pytest.skip("no fork here (not Linux, or more than one thread)")
+    pids = [pid for pid, _, _ in plotter._children]
+    plotter.cancel()
+    assert not calls.exists()
+    for pid in pids:  # reaped: no such child any more
+        with pytest.raises(ChildProcessError):
+            os.waitpid(pid, os.WNOHANG)
