@@ -65,8 +65,9 @@ TOOLS = {
     "ssp.py": [PY, str(PROJECT / "orchestration" / "ssp.py")],
     "build": [PY, "-m", "components.build"],
     "api": [PY, "api_case.py"],  # a Python API script written by the case (engine_cases)
+    "ida.py": [PY, str(PROJECT / "orchestration" / "ida.py")],
 }
-DOCUMENTED = {"run.py": {0, 1, 2, 130}, "study.py": {0, 1, 2, 130}, "tune.py": {0, 2, 130},
+DOCUMENTED = {"run.py": {0, 1, 2, 130}, "study.py": {0, 1, 2, 130}, "tune.py": {0, 1, 2, 130}, "ida.py": {0, 1, 2, 130},
               "identify.py": {0, 1, 2, 130, 143}, "ssp.py": {0, 2, 130}, "build": {0, 1, 2, 130},
               "api": {0, 1, 2}}
 SHORT = "simulation.stop_time=0.05"
@@ -976,6 +977,14 @@ def engine_cases(base: Path, package: Path) -> list[Case]:
     for name, data in bad_records.items():
         out.append(Case(f"{ENGINE}: exit class", f"!data record: {name}", "run.py",
                         _elc("ground.record=!data r.csv"), write_bytes("r.csv", data), verify=_says("r.csv")))
+    plain = {"missing": (None, "not found"), "garbage": (write_bytes("r.csv", b"no numbers\n"), "unreadable record"),
+             "a folder": (lambda d: (d / "r.csv").mkdir(), "a folder"),
+             "a FIFO": (lambda d: os.mkfifo(d / "r.csv"), "FIFO"),
+             "a record": (lambda d: shutil.copy(RECORDS / "elcentro_1940_ns.csv", d / "r.csv"), None)}
+    for name, (setup, word) in plain.items():
+        out.append(Case(f"{ENGINE}: exit class", f"plain-string record path: {name}", "run.py",
+                        _elc("ground.record=r.csv"), setup,
+                        verify=_says(word) if word else (lambda w, c, e: [] if c == [0] else [f"exit {c}"])))
     if IS_ROOT:
         for label, argv, size in (("Kobe 20 s on a 1 MiB disk", [str(SC / "kobe.yaml"), "--set",
                                                                 "simulation.stop_time=20"], "1M"),
@@ -1015,7 +1024,7 @@ def engine_cases(base: Path, package: Path) -> list[Case]:
         "no fmiVersion": (r'fmiVersion="2.0" ', "", "fmiVersion"),
         "fmiVersion 1.0": (r'fmiVersion="2.0"', 'fmiVersion="1.0"', "FMI 1.0"),
         "fmiVersion empty": (r'fmiVersion="2.0"', 'fmiVersion=""', "fmiVersion"),
-        "variable without name": (r'(<ScalarVariable) name="[^"]*"', r"\1", "no name attribute"),
+        "variable without name": (r'(<ScalarVariable) name="[^"]*"', r"\1", "ScalarVariable"),
         "variable without valueReference": (r'(<ScalarVariable[^>]*?) valueReference="[^"]*"', r"\1",
                                             "valueReference"),
         "valueReference not a number": (r'valueReference="\d+"', 'valueReference="x"', "valueReference 'x'"),
@@ -1037,6 +1046,240 @@ def engine_cases(base: Path, package: Path) -> list[Case]:
 # -- running and classifying ----------------------------------------------------------------------------
 
 _MOUNT_LOCK = threading.Lock()
+
+
+# -- issue 26, the study tools' part: bounded waits, stores, numbers, names in bytes, extends ---------------
+
+STUDIES = "26/studies"
+"""Prefix of these classes: ``--only 26/studies`` runs them alone."""
+_LISTENERS: dict[bytes, int] = {}
+_FIXTURES: dict[str, Path] = {}
+_FIXTURE_LOCK = threading.Lock()
+_EMOJI = "\N{GRINNING FACE}"
+
+
+def _listener(greeting: bytes) -> int:
+    """Port of a loopback listener for these cases: accepts, then says ``greeting`` (or nothing) and stays silent.
+
+    A daemon thread: it ends with the corpus, or after an hour by itself.
+    """
+    import socket
+
+    if greeting in _LISTENERS:
+        return _LISTENERS[greeting]
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen(16)
+    sock.settimeout(0.5)
+    end = time.monotonic() + 3600
+
+    def serve() -> None:
+        held = []
+        while time.monotonic() < end:
+            try:
+                conn, _ = sock.accept()
+            except OSError:
+                continue
+            if greeting:
+                conn.sendall(greeting)
+            held.append(conn)
+        sock.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    _LISTENERS[greeting] = sock.getsockname()[1]
+    return _LISTENERS[greeting]
+
+
+def _mini_ida_file(folder: Path) -> Path:
+    """A one-run IDA study file (one record, one level, one strategy) in ``folder``."""
+    suite = folder / "suite"
+    suite.mkdir(exist_ok=True)
+    shutil.copy(RECORDS / "kobe_1995_jma_ns.csv", suite / "kobe.csv")
+    spec = {"name": "mini-ida", "scenario": str(SC / "isolated_building.yaml"), "suite": {"folder": "suite"},
+            "time_scale": 0.2, "window": {"tail_s": 0.2}, "intensity": {"measure": "pga", "levels": [0.1]},
+            "strategies": ["passive-off"], "gains": str(SC / "sosm_gains.yaml"),
+            "limit_states": {"iso15": {"quantity": "isolator_displacement", "threshold": 0.015}},
+            "output": "studies"}
+    path = folder / "ida.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+MINI_STUDY = ["--set", "overrides=[simulation.stop_time=0.3]", "--set", "records={kobe: kobe.yaml}",
+              "--set", "strategies=[passive-off]", "--set", "reference={enabled: false}"]
+
+
+def _fixture(kind: str, base: Path) -> Path:
+    """A finished study folder of ``kind`` (``study`` or ``ida``) made once, on first use, for the cases to damage."""
+    with _FIXTURE_LOCK:
+        if kind not in _FIXTURES:
+            where = base / f"fixture-{kind}"
+            where.mkdir(parents=True, exist_ok=True)
+            env = {**os.environ, "MRE_COSIM_CODE_VERSION": "corpus"}
+            if kind == "study":
+                argv = [*TOOLS["study.py"], str(SC / "case_study.yaml"), *MINI_STUDY, "--workers", "1"]
+            else:
+                argv = [*TOOLS["ida.py"], str(_mini_ida_file(where)), "--workers", "1"]
+            subprocess.run([*argv, "--out", str(where / "done"), "--quiet"], cwd=where, env=env, check=True,
+                           capture_output=True, timeout=600)
+            _FIXTURES[kind] = where / "done"
+        return _FIXTURES[kind]
+
+
+def _damaged(kind: str, base: Path, damage: Callable[[Path], None]) -> Callable[[Path], None]:
+    """Setup: a copy of the finished study folder as ``prev`` in the case folder, then ``damage(prev)``."""
+    def setup(work: Path) -> None:
+        shutil.copytree(_fixture(kind, base), work / "prev")
+        (work / "prev" / ".mre-cosim-run").unlink(missing_ok=True)
+        damage(work / "prev")
+    return setup
+
+
+def _job(folder: Path) -> Path:
+    return sorted((folder / "jobs").glob("*.json"))[0]
+
+
+def _edit_job(change: Callable[[dict], Any]) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        path = _job(folder)
+        data = json.loads(path.read_text())
+        new = change(data)
+        path.write_text(json.dumps(data if new is None else new))
+    return damage
+
+
+def _edit_record(name: str, change: Callable[[Any], Any]) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        path = folder / name
+        path.write_text(json.dumps(change(json.loads(path.read_text()))))
+    return damage
+
+
+def _jobs_a_file(folder: Path) -> None:
+    shutil.rmtree(folder / "jobs")
+    (folder / "jobs").write_text("not a folder\n")
+
+
+def _untouched(work: Path, codes: list[int], err: str) -> list[str]:
+    """A refused resume leaves no claim behind."""
+    return [f"{m} left behind"] if (m := work / "prev" / ".resume-claim").exists() else []
+
+
+def study_tool_cases(base: Path) -> list[Case]:
+    """study.py, ida.py and tune.py: the scheduler, sizes, stores, numbers, names in bytes, extends (issue 26)."""
+    out: list[Case] = []
+    study = str(SC / "case_study.yaml")
+    silent, http, ssh = _listener(b""), _listener(b"HTTP/1.1 400 Bad Request\r\n\r\n"), _listener(b"SSH-2.0-x\r\n")
+    # class 1: every wait on the network has a bound; so has every size a user sets
+    addresses = {"a silent listener": f"tcp://127.0.0.1:{silent}", "an HTTP answer": f"127.0.0.1:{http}",
+                 "an SSH banner": f"tcp://127.0.0.1:{ssh}", "http://": f"http://127.0.0.1:{silent}",
+                 "tls://": f"tls://127.0.0.1:{silent}", "no port": "tcp://127.0.0.1", "port 0": "tcp://127.0.0.1:0",
+                 "port 99999": "tcp://127.0.0.1:99999", "a path": f"tcp://127.0.0.1:{silent}/x",
+                 "garbage": "::::", "an unknown host": "tcp://no-such-host.invalid:8786"}
+    ida_file = lambda d: _mini_ida_file(d)  # noqa: E731
+    for name, address in addresses.items():
+        words = ("within 10 s",) if name in ("a silent listener",) else ()
+        out.append(Case(f"{STUDIES}: scheduler", f"study.py at {name}", "study.py",
+                        [study, "--scheduler", address, "--out", "out", "--quiet"], timeout=90,
+                        verify=_says(*words)))
+    for name in ("a silent listener", "an HTTP answer", "http://", "garbage"):
+        out.append(Case(f"{STUDIES}: scheduler", f"ida.py at {name}", "ida.py",
+                        ["ida.yaml", "--scheduler", addresses[name], "--out", "out", "--quiet"], ida_file, timeout=90))
+        out.append(Case(f"{STUDIES}: scheduler", f"tune.py at {name}", "tune.py",
+                        [study, "--scheduler", addresses[name], "--out", "g.yaml", "--quiet"], out="g.yaml",
+                        timeout=90))
+    out.append(Case(f"{STUDIES}: scheduler", "DASK_SCHEDULER_ADDRESS a silent listener", "study.py",
+                    [study, "--out", "out", "--quiet"], env={"DASK_SCHEDULER_ADDRESS": addresses["a silent listener"]},
+                    timeout=90))
+    for setting in ("sweep.step=1e-10", "sweep.step=5e-324", "sweep.stop=1e300", "i_max=1e300",
+                    "tuning.n_samples=1000000000", "tuning.max_evals=1000000000000", "timeout_s=1e300"):
+        out.append(Case(f"{STUDIES}: sizes", setting, "study.py", [study, "--set", setting, "--out", "out", "--quiet"],
+                        timeout=60))
+    out.append(Case(f"{STUDIES}: sizes", "tune.py tuning.n_samples=1e9", "tune.py",
+                    [study, "--set", "tuning.n_samples=1000000000", "--out", "g.yaml", "--quiet"], out="g.yaml"))
+    # class 4: stores and folders read defensively (a finished study folder, damaged)
+    damages: dict[str, Callable[[Path], None]] = {
+        "a stored peak edited": _edit_job(lambda d: d["value"].__setitem__("peak_base_displacement_m", 1e-3)
+                                          if isinstance(d.get("value"), dict) and "peak_base_displacement_m"
+                                          in d["value"] else d.__setitem__("wall_time_s", 1.0)),
+        "a stored result without its checksum": _edit_job(lambda d: d.pop("checksum") and None),
+        "a stored result of another key": _edit_job(lambda d: d.__setitem__("key", "0" * 32)),
+        "a stored result a list": _edit_job(lambda d: [d]),
+        "a stored result truncated": lambda f: _job(f).write_text(_job(f).read_text()[:40]),
+        "a folder where a result was": lambda f: (_job(f).unlink(), (f / "jobs" / ("1" * 32 + ".json")).mkdir()),
+        "a stray file in jobs": lambda f: (f / "jobs" / "notes.txt").write_text("mine\n"),
+        "jobs a file": _jobs_a_file,
+        "a claim of a running resume": lambda f: (f / ".resume-claim").write_text(json.dumps(
+            {"pid": 1, "host": os.uname().nodename})),
+    }
+    for kind, tool, record in (("study", "study.py", "study.json"), ("ida", "ida.py", "ida.json")):
+        for name, damage in damages.items():
+            out.append(Case(f"{STUDIES}: stores", f"{tool} --resume, {name}", tool,
+                            ["--resume", "prev", "--quiet", "--workers", "1"], _damaged(kind, base, damage),
+                            out=None, timeout=180, verify=_untouched if "claim" not in name else None))
+        for name, damage in ((f"{record} a list", _edit_record(record, lambda d: [d])),
+                             (f"{record} without keys", _edit_record(record, lambda d: {})),
+                             (f"{record} a folder", lambda f, r=record: ((f / r).unlink(), (f / r).mkdir())),
+                             (f"{record} truncated", lambda f, r=record: (f / r).write_text((f / r).read_text()[:50]))):
+            for flag in ("--resume", "--report"):
+                out.append(Case(f"{STUDIES}: stores", f"{tool} {flag}, {name}", tool,
+                                [flag, "prev", "--quiet"], _damaged(kind, base, damage), out=None, timeout=180))
+        for flag in ("--resume", "--report"):
+            out.append(Case(f"{STUDIES}: stores", f"{tool} {flag} of a file", tool, [flag, PRECIOUS, "--quiet"],
+                            out=None))
+            out.append(Case(f"{STUDIES}: stores", f"{tool} {flag} of nothing", tool, [flag, "nowhere", "--quiet"],
+                            out=None))
+    # class 5: numbers finite and in their domain, booleans true or false
+    for setting in ("timeout_s=.nan", "timeout_s=0", "timeout_s=-1", "timeout_s=.inf", "objective.w_acc=.nan",
+                    "objective.penalty=.inf", "objective.x_limit=-.inf", "tuning.bounds.lam=[.nan, 2]",
+                    "tuning.seed=-1", "tuning.stop_time=-1", "tuning.stop_time=.nan", "x_limit=.nan",
+                    "reference.rtol=.nan", "reference.enabled=yes", "reference.enabled=off",
+                    "reference.enabled='yes'", "paper_current_range=[2, 1]", "fig15.i_max=.nan"):
+        out.append(Case(f"{STUDIES}: numbers", f"study.py {setting}", "study.py",
+                        [study, "--set", setting, "--out", "out", "--quiet"], verify=_says(setting.split("=")[0]
+                                                                                         .split(".")[-1])))
+    for setting in ("objective.w_drift=.nan", "tuning.seed=-5", "tuning.bounds.rho=[1, .inf]", "tuning.stop_time=0"):
+        out.append(Case(f"{STUDIES}: numbers", f"tune.py {setting}", "tune.py",
+                        [study, "--set", setting, "--out", "g.yaml", "--quiet"], out="g.yaml"))
+    for setting in ("timeout_s=.nan", "timeout_s=0", "window.tail_s=.inf", "window.strong_motion=yes",
+                    "intensity.levels=[.nan]", "confidence=.nan", "time_scale=-1", "i_max=.inf"):
+        out.append(Case(f"{STUDIES}: numbers", f"ida.py {setting}", "ida.py",
+                        ["ida.yaml", "--set", setting, "--out", "out", "--quiet"], ida_file))
+    out.append(Case(f"{STUDIES}: numbers", "a study file with enabled: on", "study.py", ["s.yaml", "--quiet"],
+                    lambda d: (d / "s.yaml").write_text(f"extends: {study}\nreference:\n  enabled: on\n"),
+                    verify=_says("s.yaml:3")))
+    # class 6: names and paths measured in bytes against the file system's limits
+    for name, argv in (("name of 100 emoji", ["--set", f"name={_EMOJI * 100}"]),
+                       ("name of 62 emoji (+ time stamp)", ["--set", f"name={_EMOJI * 62}"]),
+                       ("--out of 100 emoji", ["--out", _EMOJI * 100]),
+                       ("--out 5,000 bytes deep", ["--out", "/".join(["d" * 200] * 25)]),
+                       ("output of 70 emoji", ["--set", f"output={_EMOJI * 70}/x"])):
+        out.append(Case(f"{STUDIES}: names", f"study.py {name}", "study.py", [study, *argv, "--quiet"],
+                        out=None, verify=_says("bytes")))
+    out.append(Case(f"{STUDIES}: names", "ida.py --out of 100 emoji", "ida.py",
+                    ["ida.yaml", "--out", _EMOJI * 100, "--quiet"], ida_file, out=None, verify=_says("bytes")))
+    out.append(Case(f"{STUDIES}: names", "ida.py name of 100 emoji", "ida.py",
+                    ["ida.yaml", "--set", f"name={_EMOJI * 100}", "--quiet"], ida_file, out=None,
+                    verify=_says("bytes")))
+    out.append(Case(f"{STUDIES}: names", "tune.py --out of 100 emoji", "tune.py",
+                    [study, "--out", _EMOJI * 100 + ".yaml", "--quiet"], out=None, verify=_says("bytes")))
+    # class 7: a study file extending a shipped one from another folder finds the shipped files
+    # (a bad scheduler ends each case right after the study is loaded: the message must be the scheduler's)
+    ext = lambda text: lambda d: ((d / "mine").mkdir(), (d / "mine" / "s.yaml").write_text(text))  # noqa: E731
+    for name, setup in (("absolute extends", ext(f"extends: {study}\nname: mine\n")),
+                        ("relative extends", lambda d: ext(f"extends: {os.path.relpath(study, d / 'mine')}\n")(d)),
+                        ("two extends", lambda d: (ext(f"extends: {study}\n")(d), (d / "t.yaml").write_text(
+                            "extends: mine/s.yaml\nname: t\n")))):
+        target = "t.yaml" if name == "two extends" else "mine/s.yaml"
+        out.append(Case(f"{STUDIES}: extends", f"study.py, {name}", "study.py",
+                        [target, "--scheduler", "http://127.0.0.1:1", "--quiet"], setup, out=None,
+                        verify=_says("only tcp://", never=("does not exist",))))
+    out.append(Case(f"{STUDIES}: extends", "ida.py, a study extending another folder's", "ida.py",
+                    ["mine/ida.yaml", "--scheduler", "http://127.0.0.1:1", "--quiet"],
+                    lambda d: ((d / "mine").mkdir(), _mini_ida_file(d), (d / "mine" / "ida.yaml").write_text(
+                        f"extends: {d / 'ida.yaml'}\nname: mine\n")), out=None,
+                    verify=_says("only tcp://", never=("does not exist",))))
+    return out
 
 
 def _mount(folder: Path, kind: str, size: str) -> None:
@@ -1210,7 +1453,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     _PACKAGE_LONG = export_ssp(plan_scenario(SC / "kobe.yaml"), base / "kobe.ssp")
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
-            *engine_cases(base, package)]
+            *engine_cases(base, package), *study_tool_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

@@ -19,10 +19,13 @@ in :mod:`mre_common` so that both layers may use it (``python -m components.buil
 
 from __future__ import annotations
 
-import os
-import signal
+import _signal as signal  # signal.py's C core: signal.py imports enum and builds its enums (tens of ms on a
+import os  # loaded machine), and this module is imported before the Ctrl-C handler exists (quiet_interrupts)
 import sys
-from collections.abc import Callable, Sequence
+
+TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (14 ms): a tool imports this module first,
+if TYPE_CHECKING:  # before its Ctrl-C handler is set, so it imports nothing that is not loaded at start-up
+    from collections.abc import Callable, Sequence
 
 EXIT_OK = 0
 EXIT_FAILED = 1

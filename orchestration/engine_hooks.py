@@ -17,7 +17,9 @@ the applications (command-line tools, studies, the Python API) give it these hoo
 
 from __future__ import annotations
 
+import os
 from dataclasses import replace
+from functools import lru_cache
 from pathlib import Path
 
 from components.build.project_fmus import ensure_fmu
@@ -38,7 +40,17 @@ RECORDS_DIR = PROJECT_DIR / "scenarios" / "records"
 
 
 def check_record(path: Path) -> str | None:
-    """Problem text if ``path`` is not a readable ground-motion record, else None."""
+    """Problem text if ``path`` is not a readable ground-motion record, else None (each file parsed once per
+    process while its size and modification time stay the same: a study plans every record many times)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return _check_record.__wrapped__(str(path), -1, -1)  # no file: not cached
+    return _check_record(str(path), st.st_size, st.st_mtime_ns)
+
+
+@lru_cache(maxsize=1024)
+def _check_record(path: str, size: int, mtime_ns: int) -> str | None:
     try:
         read_record(path)
     except RecordError as exc:

@@ -1,7 +1,8 @@
 """Tune the SOSM gains of a study: ``python orchestration/tune.py scenarios/case_study.yaml --force``.
 
 Writes the study's gains file (``scenarios/sosm_gains.yaml``); see
-:mod:`orchestration.case_study.tuning`. Exit codes: 0 written; 2 configuration error or the
+:mod:`orchestration.case_study.tuning`. Exit codes: 0 written; 1 no finite objective (nothing
+written); 2 configuration error or the
 gains file exists without ``--force`` (nothing written); 3 internal error (a bug; the
 traceback is in the log file named); 130 interrupted (nothing written).
 """
@@ -21,7 +22,8 @@ if __name__ == "__main__":
 
 from orchestration.cli import EPILOG_COMMON, run_tool, with_epilog
 
-EPILOG = ("exit codes: 0 gains file written; 2 configuration error, or the gains file exists without --force "
+EPILOG = ("exit codes: 0 gains file written; 1 the tuning found no finite objective (nothing written); "
+          "2 configuration error, or the gains file exists without --force "
           "(nothing written); " + EPILOG_COMMON)
 
 

@@ -71,9 +71,18 @@ def graph(sources: dict[str, str]) -> dict[str, set[str]]:
     return {n: {m for m in imports_of(n, s) if m in sources and m != n} for n, s in sources.items()}
 
 
+FORBIDDEN = {"orchestration.case_study": ("orchestration.ida_study",)}
+"""Applications that may import much, but not this: IDA builds on the case study, never the reverse."""
+
+
 def violations(sources: dict[str, str]) -> list[str]:
-    """Every import that breaks RULES."""
+    """Every import that breaks RULES or FORBIDDEN."""
     out = []
+    for name, targets in sorted(graph(sources).items()):
+        for prefix, banned in FORBIDDEN.items():
+            if name == prefix or name.startswith(prefix + "."):
+                out += [f"{name} imports {t}" for t in sorted(targets)
+                        if any(t == b or t.startswith(b + ".") for b in banned)]
     for name, targets in sorted(graph(sources).items()):
         rule = max((p for p in RULES if name == p or name.startswith(p + ".")), key=len, default=None)
         if rule is None:
@@ -134,8 +143,10 @@ def test_the_rules_catch_an_engine_module_that_imports_components():
     sources["orchestration.master.execution"] += "\nfrom components.physics.mre_isolator_core import IsolatorLaw\n"
     sources["orchestration.master.recorder"] += "\ndef f():\n    from orchestration.case_study.case_metrics import x\n"
     sources["orchestration.batch.pool"] += "\nimport orchestration.ida_study.fragility\n"
-    assert violations(sources) == [
+    sources["orchestration.case_study.claims"] += "\nimport orchestration.ida_study.fragility\n"
+    assert sorted(violations(sources)) == [
         "orchestration.batch.pool imports orchestration.ida_study.fragility",
+        "orchestration.case_study.claims imports orchestration.ida_study.fragility",
         "orchestration.master.execution imports components.physics.mre_isolator_core",
         "orchestration.master.recorder imports orchestration.case_study.case_metrics",
     ]

@@ -103,3 +103,17 @@ def test_ctrl_c_handling_is_installed_before_any_other_import(tool):
     late = [n for n in names[guard + 1:] if n in ("argparse", "orchestration.cli", "logging", "numpy")]
     assert late, names[guard:]
     assert not [n for n in names[:guard] if n in ("argparse", "orchestration.cli", "logging", "numpy", "yaml")]
+
+
+def test_a_plain_string_record_path_is_checked_where_the_unit_will_open_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "garbage.csv").write_text("no numbers here\n")
+    (tmp_path / "folder.csv").mkdir()
+    for value, message in (("nowhere.csv", f"no {tmp_path / 'nowhere.csv'}"),
+                           ("garbage.csv", "unreadable record"), ("folder.csv", "is a folder, not a regular file")):
+        with pytest.raises(ScenarioError, match=re.escape(message)):
+            plan_scenario(ELCENTRO, (SHORT, f"ground.record={value}"))
+    from .conftest import shipped_record
+
+    (tmp_path / "ok.csv").write_bytes(shipped_record("elcentro_1940_ns.csv").read_bytes())
+    assert plan_scenario(ELCENTRO, (SHORT, "ground.record=ok.csv")).parameters["ground"]["record"] == "ok.csv"

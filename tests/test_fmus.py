@@ -1,16 +1,29 @@
-"""Per-FMU tests: each FMU built, loaded with fmpy, stepped, and equal to its physics core.
+"""Per-FMU tests: each FMU built, loaded with fmpy, stepped, equal to its physics core; its errors reach any host.
 
-The isolator's own checks run against both of its implementations in test_c_isolator.py.
+The isolator's own checks run against both of its implementations in test_c_isolator.py; what each
+FMU declares (a valid model description, its units) is checked in test_fmu_descriptions.py.
+
+The last section: unit errors reach a host that did not turn debug logging on (issue #12).
+pythonfmu 0.7 hands a message to the host only when the host instantiated the unit with
+``loggingOn`` (and only in the categories it named), and reports a failed ``do_step`` as
+fmi2Discard. So ``fmpy simulate`` (no debug logging) ran a missing record to the end with
+exit 0 and rows of zeros, and a host without scipy saw only "Failed to instantiate model".
+The build's logging shim (components/build/fmi2_log_shim.c) forwards warnings and errors
+always and makes our units' failed steps fmi2Error. Checked with fmpy, in child processes.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.validation import validate_fmu
 
 from components.build.pythonfmu_units import build, discover
 from components.physics.ground_motion_core import GroundMotion, read_record
@@ -18,38 +31,8 @@ from components.physics.mre_isolator_core import TABLE2, isolator_force
 from components.physics.shear_building_core import BuildingParams, ShearBuilding
 from components.physics.sosm_controller_core import SosmController, SosmGains
 
+from .conftest import PROJECT
 from .fmu_driver import Driven
-
-FMU_NAMES = [source.fmu_name.removesuffix(".fmu") for source in discover()] + ["MreIsolatorC"]
-
-
-@pytest.mark.parametrize("name", FMU_NAMES)
-def test_fmu_is_valid(fmu_dir, name):
-    """Every FMU the project builds passes fmpy's validation with zero problems."""
-    assert validate_fmu(str(fmu_dir / f"{name}.fmu")) == []
-
-
-def test_sosm_gain_units_are_declared_with_their_fractional_powers(fmu_dir):
-    """theta [m^0.5 s^-1.5] and zeta [A s^0.5 m^-0.5]: declared by name only (no integer base-unit exponents)."""
-    from fmpy import read_model_description
-
-    md = read_model_description(str(fmu_dir / "SosmCurrentController.fmu"))
-    units = {v.name: v.unit for v in md.modelVariables}
-    assert units["theta"] == "m0.5/s1.5" and units["zeta"] == "A.s0.5/m0.5"
-    declared = {u.name: u for u in md.unitDefinitions}
-    assert declared["m0.5/s1.5"].baseUnit is None and declared["A.s0.5/m0.5"].baseUnit is None
-
-
-@pytest.mark.parametrize("name", [s.fmu_name.removesuffix(".fmu") for s in discover() if s.handles_state])
-def test_fmu_ships_its_runtime_requirements(fmu_dir, name):
-    import zipfile
-
-    with zipfile.ZipFile(fmu_dir / f"{name}.fmu") as z:
-        text = z.read("resources/requirements.txt").decode()
-        assert "Python >= 3.11" in text
-        assert "documentation/index.html" in z.namelist()
-        assert 'canGetAndSetFMUstate="true"' in z.read("modelDescription.xml").decode()
-
 
 STATEFUL = {
     "ShearBuilding": {},
@@ -156,6 +139,31 @@ def test_storey_count_is_chosen_at_build_time(tmp_path):
         _check_building(bld, BuildingParams.uniform(5), steps=30)
     finally:
         bld.close()
+
+
+_BUILD_AFTER_AN_INSTANCE = """
+import sys, zipfile
+from pathlib import Path
+from tests.fmu_driver import Driven
+unit = Driven(Path(sys.argv[1]), "first", {})  # pythonfmu is not imported yet: the FMU's own copy becomes it
+assert "resources" in sys.modules["pythonfmu"].__file__
+unit.close()  # frees the instance and deletes its folder, the copy's too
+from components.build.pythonfmu_units import build, discover
+source = next(s for s in discover() if s.class_name == "ConstantCurrent")
+names = zipfile.ZipFile(build(source, Path(sys.argv[2]))).namelist()
+print(sorted(n for n in names if n.startswith("binaries/linux64/")))
+"""
+
+
+def test_a_build_after_an_fmu_instance_in_the_same_process_still_ships_binaries(fmu_dir, tmp_path):
+    """A pythonfmu FMU instantiated before pythonfmu is imported makes its bundled copy (no builder binaries)
+    the process's pythonfmu; a build afterwards must still use the installed package's binaries."""
+    project = Path(__file__).resolve().parent.parent
+    proc = subprocess.run([sys.executable, "-c", _BUILD_AFTER_AN_INSTANCE, str(fmu_dir / "ConstantCurrent.fmu"),
+                           str(tmp_path)], capture_output=True, text=True, timeout=120, cwd=project)
+    assert proc.returncode == 0, proc.stderr
+    shipped = "['binaries/linux64/ConstantCurrent.pythonfmu.so', 'binaries/linux64/ConstantCurrent.so']"
+    assert proc.stdout.strip().splitlines()[-1] == shipped
 
 
 def test_controller_fmu_equals_core(fmu_dir):
@@ -382,3 +390,77 @@ def test_scalar_fast_paths_of_the_cores_give_the_same_numbers():
             fused = np.hstack(bld.discretization(h))
             bld.step(ag, F, h)
             _products_agree(bld.q, fused, z)
+
+
+# ----------------------------------------------------------------------------- errors reach every host
+
+def _fmpy(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "fmpy.cli", *args], capture_output=True, text=True, timeout=120,
+                          cwd=PROJECT, env=env)
+
+
+def test_a_missing_record_fails_fmpy_simulate_with_the_path(fmu_dir, tmp_path):
+    missing = tmp_path / "no_such_record.csv"
+    done = _fmpy("simulate", str(fmu_dir / "GroundMotionSource.fmu"), "--start-values", "record", str(missing),
+                 "--stop-time", "0.05", "--output-file", str(tmp_path / "out.csv"))
+    output = done.stdout + done.stderr
+    assert done.returncode != 0, output  # before: exit 0 and a file of zeros
+    # fmpy prints the units' messages on stdout, its own exception on stderr
+    assert f"[ERROR] cannot use the ground-motion record: {missing}: no such file" in done.stdout
+    assert "fmi2DoStep failed with status 3 (error)" in done.stderr
+
+
+_CATEGORIES = textwrap.dedent("""
+    import shutil, sys
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    fmu, record, categories = sys.argv[1], sys.argv[2], sys.argv[3:]
+    md = read_model_description(fmu)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    folder = extract(fmu)
+    unit = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                     instanceName="ground")
+    unit.instantiate(loggingOn=False)
+    if categories:
+        unit.setDebugLogging(True, categories)
+    unit.setupExperiment(startTime=0.0)
+    unit.setString([vr["record"]], [record])
+    unit.enterInitializationMode()
+    unit.exitInitializationMode()
+    try:
+        unit.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.01)
+    except Exception as exc:
+        print("STEP FAILED:", getattr(exc, "status", exc), flush=True)
+    unit.terminate()
+    unit.freeInstance()
+    shutil.rmtree(folder, ignore_errors=True)
+""")
+
+
+@pytest.mark.slow
+def test_errors_reach_the_logger_whatever_the_categories(fmu_dir, tmp_path):
+    missing = tmp_path / "gone.csv"
+    for categories in ([], ["logStatusWarning"], ["logAll"], ["noSuchCategory"]):
+        done = subprocess.run([sys.executable, "-c", _CATEGORIES, str(fmu_dir / "GroundMotionSource.fmu"),
+                               str(missing), *categories], capture_output=True, text=True, timeout=120, cwd=PROJECT)
+        assert done.returncode == 0, done.stderr[-2000:]
+        errors = [line for line in done.stdout.splitlines() if line.startswith("[ERROR]")]
+        # logged on leaving initialization mode and again by the failing step, both with the path
+        assert len(errors) == 2 and all(str(missing) in line for line in errors), (categories, done.stdout)
+        assert "STEP FAILED: 3" in done.stdout, (categories, done.stdout)
+
+
+def test_a_host_without_scipy_is_told_why_the_building_cannot_start(fmu_dir, tmp_path):
+    hide = tmp_path / "hide"
+    (hide / "scipy").mkdir(parents=True)
+    (hide / "scipy" / "__init__.py").write_text("raise ModuleNotFoundError(\"No module named 'scipy'\")\n")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(hide)  # before site-packages: the host's scipy is hidden
+    check = subprocess.run([sys.executable, "-c", "import scipy"], capture_output=True, text=True, env=env)
+    assert check.returncode != 0  # the hiding works
+    done = _fmpy("simulate", str(fmu_dir / "ShearBuilding.fmu"), "--stop-time", "0.01",
+                 "--output-file", str(Path(tmp_path) / "out.csv"), env=env)
+    assert done.returncode != 0
+    assert "[FATAL]" in done.stdout, done.stdout + done.stderr  # before: nothing but "Failed to instantiate model"
+    assert "the ShearBuilding unit needs the Python packages numpy and scipy" in done.stdout
+    assert "No module named 'scipy'" in done.stdout

@@ -8,7 +8,9 @@ values set before ``fmi2EnterInitializationMode``, the same values set after it,
 without them (defaults). The same input signal drives all three runs from the second
 step on (the first step runs on the start values). The first two must give the same
 outputs to the last bit; the third must differ, so the test sees whether the values
-were used at all.
+were used at all. For the ground-motion unit, the values are also checked against the record as
+the physics core plays it (before issue #12's fix the unit played zeros when its parameters came in
+Initialization mode).
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import textwrap
 
 import numpy as np
 import pytest
+
+from components.physics.ground_motion_core import GroundMotion, read_record
 
 from .conftest import PROJECT, shipped_record
 
@@ -175,3 +179,17 @@ def test_values_set_in_initialization_mode_are_used(fmu_dir, name):
     np.testing.assert_array_equal(during, before)
     # and the values matter: without them the unit computes something else
     assert np.max(np.abs(defaults - before)) > 1e-6 * max(1.0, np.max(np.abs(before)))
+
+
+def test_the_ground_motion_unit_plays_the_record_whichever_state_takes_its_parameters(fmu_dir, elcentro):
+    """Not only equal to each other: with record and scale set before or after fmi2EnterInitializationMode
+    (as our master and as ecos do), the unit's ag is the record as the physics core plays it at the step ends
+    t = k h + h: the same interpolation on the same times, so equal to the last bit."""
+    spec = {"values": {"scale": 0.5}, "required": {"record": str(elcentro)}, "signal": {},
+            "outputs": ["ag"], "h": 0.01, "steps": 2000}
+    motion = GroundMotion(read_record(elcentro), 0.5, 1.0)
+    expected = np.array([motion.acceleration(k * 0.01 + 0.01) for k in range(2000)])
+    assert np.max(np.abs(expected)) > 1.0  # the record is not silent over these 20 s
+    for when in ("instantiated", "initialization"):
+        played = _drive(fmu_dir / "GroundMotionSource.fmu", spec, when)[1:, 0]  # row 0: before the first step
+        np.testing.assert_array_equal(played, expected)

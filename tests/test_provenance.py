@@ -77,3 +77,17 @@ def test_an_fmu_replaced_by_another_valid_fmu_after_the_checks_fails_the_run(tmp
     outcome = run_plan(plan, tmp_path / "out", plots=False)
     assert outcome.result.status == "failed" and str(fmu) in str(outcome.result.error)
     assert "SHA-256" in str(outcome.result.error)
+
+
+def test_a_plan_moved_to_other_copies_checks_only_the_inputs_it_knows(record, tmp_path):
+    """A batch worker runs a plan whose files are content-addressed copies (checked by their SHA-256 when copied):
+    the client's paths are not what it reads, so they are not checked there."""
+    from dataclasses import replace
+
+    plan = _plan(record)
+    copy = tmp_path / "copy.csv"
+    shutil.copy(record, copy)
+    moved = replace(plan, data_files={"ground.record": copy})
+    record.write_text("changed on the client after the plan was sent\n")
+    assert moved.changed_inputs() == []
+    assert [text.split(" ")[0] for text in plan.changed_inputs()] == [str(record.resolve())]

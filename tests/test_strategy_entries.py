@@ -81,7 +81,7 @@ def test_malformed_entry_and_missing_strategy_file(tmp_path: Path) -> None:
     (problem,) = exc.value.problems
     assert (problem.key, problem.line) == ("strategies.mine.paramters", 5)
     study = _study(tmp_path, "strategies: [passive-off]\nstrategy_files: [nowhere.yaml]\n")
-    with pytest.raises(ScenarioError, match="strategy file .*nowhere.yaml does not exist"):
+    with pytest.raises(ScenarioError, match=r"strategy file .*nowhere\.yaml does not exist"):
         load_study(study)
 
 

@@ -46,7 +46,8 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     out = tmp_path / "study"
     proc = study_cli(str(STUDY), "--set", "overrides=[simulation.stop_time=3]",
                      "--set", "records={elcentro: elcentro.yaml, hachinohe: hachinohe.yaml}",
-                     "--set", "strategies=[passive-off, sosm, sosm-fig15]", "--out", str(out), "--quiet", cwd=tmp_path)
+                     "--set", "strategies=[passive-off, sosm, sosm-fig15]", "--out", str(out), "--quiet", "--verify",
+                     cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "beyond the identified ±8 mm" in proc.stderr  # El Centro at 0 A goes beyond 8 mm in its first 3 s
     for name in ("peaks.csv", "indices.csv", "reference.csv", "report.md", "report.html", "study.json",

@@ -74,7 +74,8 @@ def _build(argv: list[str] | None) -> int:
     parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.add_argument(
-        "--storeys", type=int, nargs="*", default=[], help="also build building variants (ShearBuilding, OpenSeesBuilding) with N storeys"
+        "--storeys", type=int, nargs="*", default=[],
+        help="also build building variants (ShearBuilding, OpenSeesBuilding) with N storeys",
     )
     args = parser.parse_args(argv)
     bad = [n for n in args.storeys if not 1 <= n <= MAX_STOREYS]

@@ -265,8 +265,40 @@ def _linux_binary(source: FmuSource, name: str, data: bytes, workdir: Path) -> l
     return [(name, shim), (str(Path(name).parent / inner), fixed)]
 
 
+def _has_builder_binaries(package_file: str | None) -> bool:
+    return package_file is not None and (Path(package_file).parent / "resources" / "binaries").is_dir()
+
+
+def installed_pythonfmu() -> None:
+    """Make ``import pythonfmu`` the installed package, whose builder ships the FMU binaries.
+
+    pythonfmu FMUs run in the host's interpreter and carry a copy of pythonfmu in their
+    resources: if one was instantiated in this process before pythonfmu was imported, that
+    copy (without the binaries, its folder maybe deleted since) is ``sys.modules["pythonfmu"]``,
+    and its builder would silently write FMUs with no binaries. The copy is dropped from
+    ``sys.modules`` (live instances keep their module objects) and the installed one imported.
+    """
+    loaded = sys.modules.get("pythonfmu")
+    if loaded is None or _has_builder_binaries(getattr(loaded, "__file__", None)):
+        return
+    for name in [m for m in sys.modules if m == "pythonfmu" or m.startswith("pythonfmu.")]:
+        del sys.modules[name]
+    saved = sys.path[:]
+    # skip every folder that holds an FMU's copy (an instance still alive keeps its resources on sys.path)
+    sys.path[:] = [p for p in saved if not (Path(p or ".") / "pythonfmu" / "fmi2slave.py").is_file()
+                   or _has_builder_binaries(str(Path(p or ".") / "pythonfmu" / "__init__.py"))]
+    try:
+        import pythonfmu
+    finally:
+        sys.path[:] = saved
+    if not _has_builder_binaries(pythonfmu.__file__):
+        raise BuildError(f"the pythonfmu package at {Path(pythonfmu.__file__).parent} has no builder binaries "
+                         "(resources/binaries): reinstall pythonfmu")
+
+
 def build(source: FmuSource, dest: Path) -> Path:
     """Build one FMU into ``dest`` and complete its modelDescription; returns its path."""
+    installed_pythonfmu()
     from pythonfmu import FmuBuilder
 
     dest.mkdir(parents=True, exist_ok=True)
@@ -284,6 +316,10 @@ def build(source: FmuSource, dest: Path) -> Path:
         if source.once_per_process:
             options["canBeInstantiatedOnlyOncePerProcess"] = True
         sys.path.insert(0, str(CORES_DIR))
+        # The shell and its cores as they are in components/, not as an FMU instantiated earlier in this process
+        # loaded them (pythonfmu FMUs share the host's interpreter): those are set aside and put back afterwards.
+        shadowed = {m: sys.modules.pop(m) for m in (script.stem, *source.core_modules) if m in sys.modules
+                    and Path(getattr(sys.modules[m], "__file__", "") or "").resolve() not in (script.resolve(), *cores)}
         try:
             raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=[*cores, requirements],
                                        documentation_folder=docs, **options)
@@ -293,6 +329,7 @@ def build(source: FmuSource, dest: Path) -> Path:
         finally:
             sys.path.remove(str(CORES_DIR))
             sys.modules.pop(script.stem, None)
+            sys.modules.update(shadowed)
         def write(f: BinaryIO) -> None:
             with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as zout:
                 for item in zin.infolist():

@@ -54,10 +54,13 @@ class BuildingParams:
     def __post_init__(self) -> None:
         if not (len(self.m) == len(self.k) == len(self.c)) or len(self.m) < 2:
             raise ValueError("m, k and c need one entry per level (base + at least one storey)")
-        if min(self.m) <= 0:
-            raise ValueError(f"masses must be positive, got {self.m}")
-        if min(self.k) < 0 or min(self.c) < 0:
-            raise ValueError("stiffnesses and dampings must not be negative")
+        for j, m in enumerate(self.m):
+            if not m > 0:  # NaN too
+                raise ParameterError(f"m_{j}", f"masses must be positive, got {self.m}")
+        for name, values in (("k", self.k), ("c", self.c)):
+            for j, value in enumerate(values):
+                if value < 0:
+                    raise ParameterError(f"{name}_{j}", "stiffnesses and dampings must not be negative")
 
     @property
     def n_storeys(self) -> int:
@@ -835,6 +838,8 @@ def parameter_problem(values: dict[str, float | int | str]) -> tuple[str, str] |
     n_levels = sum(1 for name in values if name.startswith("m_") and name[2:].isdigit())
     try:
         params = BuildingParams(*(tuple(float(values[f"{p}_{j}"]) for j in range(n_levels)) for p in "mkc"))
+    except ParameterError as exc:
+        return exc.parameter, str(exc)
     except (KeyError, ValueError, TypeError) as exc:
         return "m_j, k_j, c_j", str(exc)
     storeys = range(1, n_levels)

@@ -16,6 +16,13 @@ pythonfmu, the master, the native kernel, the worker's main script), so a child 
 fork (10-30 ms), not an interpreter start; a run in a child is as fast as in the worker
 (``benchmarks/results_dask.md``). The child dies with its forkserver (``PR_SET_PDEATHSIG``),
 so a worker that goes away takes its running co-simulation with it.
+
+A child hosts one run and exits, so its FMUs are loaded from extractions shared by every run of
+the machine (``<temp>/mre-cosim-files-<uid>/extracted/<SHA-256 of the archive>/``, made once;
+:func:`orchestration.master.fmu_loading.share_extractions`), not extracted afresh for each run:
+0.013 s less per short run on a quiet machine (0.372 against 0.385 s), 1.3 s under a load average
+of 22 (``benchmarks/study_overhead.py --job-cost 8``).
+Every run still instantiates its units fresh, in a fresh process.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import time
 import traceback
 from collections.abc import Callable
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any
 
 PRELOAD = "orchestration.batch.forkserver_preload"
@@ -97,11 +105,29 @@ def _die_with_parent() -> None:
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
+def extraction_root() -> Path:
+    """Where the children of this machine's workers keep each FMU extracted, by the archive's SHA-256."""
+    from orchestration.batch.portable import cache_root
+
+    return cache_root() / "extracted"
+
+
+def _share_extractions() -> None:
+    """This child hosts one run and exits: its FMUs are loaded from extractions shared by every run of the machine
+    (:func:`orchestration.master.fmu_loading.share_extractions`; each instance is still created fresh)."""
+    try:
+        from orchestration.master.fmu_loading import share_extractions
+    except ImportError:  # a forkserver that preloaded an older master (the code changed under a running study)
+        return
+    share_extractions(extraction_root())
+
+
 def _child(func_bytes: bytes, payload: Any, conn: Connection, log: str | None) -> None:
     import cloudpickle
 
     _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the study decides about interruptions
+    _share_extractions()
     if log is not None:
         stream = open(log, "a", buffering=1)  # lives as long as the process
         os.dup2(stream.fileno(), 1)
@@ -137,6 +163,16 @@ def exit_reason(code: int | None) -> str:
         except ValueError:
             return f"process killed by signal {-code}"
     return f"process exited with code {code} without a result"
+
+
+def _remove_run_folders(pid: int) -> None:
+    """Remove the temporary run folders a child ``pid`` that did not end by itself left (see jobs.run_folder)."""
+    import shutil
+
+    from orchestration.batch.jobs import run_folder_prefix
+
+    for folder in Path(tempfile.gettempdir()).glob(run_folder_prefix(pid) + "*"):
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def call_in_child(
@@ -199,6 +235,8 @@ def call_in_child(
             if proc.is_alive():
                 proc.kill()
         proc.join()
+        if message is None and proc.pid is not None:  # killed or crashed: its temporary run folder stays behind
+            _remove_run_folders(proc.pid)
     wall = time.perf_counter() - start
     output = ""
     if captured is not None:

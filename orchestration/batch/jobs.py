@@ -10,6 +10,7 @@ The jobs themselves live with their studies (``case_study.case_jobs``, ``ida_stu
 
 from __future__ import annotations
 
+import os
 import tempfile
 import zlib
 from pathlib import Path
@@ -33,6 +34,12 @@ def _localize(text: str, paths: dict[str, str]) -> str:
     return text
 
 
+def run_folder_prefix(pid: int) -> str:
+    """Prefix of the temporary run folder of the process ``pid``: a killed job's folder is found and removed
+    by its parent (:func:`orchestration.batch.child.call_in_child`)."""
+    return f"mre-cosim-run-{pid}-"
+
+
 def run_folder(payload: dict[str, Any]) -> tuple[Any, dict[str, bytes]]:
     """Run the payload's plan; its outcome and its run folder's files (zlib-compressed), by name.
 
@@ -43,7 +50,7 @@ def run_folder(payload: dict[str, Any]) -> tuple[Any, dict[str, bytes]]:
     from orchestration.master.session import run_plan
 
     plan, paths = job_plan(payload)
-    with tempfile.TemporaryDirectory(prefix="mre-cosim-run-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=run_folder_prefix(os.getpid())) as tmp:
         folder = Path(tmp) / "run"
         outcome = run_plan(plan, folder, plots=False, progress=False)
         files = {}

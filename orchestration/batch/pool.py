@@ -76,6 +76,65 @@ def scheduler_address(option: str | None) -> str | None:
     return option or os.environ.get(SCHEDULER_ENV) or None
 
 
+def scheduler_endpoint(address: str) -> tuple[str, int]:
+    """The host and port of a scheduler address (``tcp://HOST:PORT`` or ``HOST:PORT``); BatchUnavailable if malformed.
+
+    Only plain TCP is supported (what ``dask scheduler`` listens on by default): ``http://`` (the
+    dashboard), ``tls://`` and other schemes are refused up front, never waited for.
+    """
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme != "tcp":
+        raise BatchUnavailable(f"scheduler address {address!r}: only tcp://HOST:PORT is supported "
+                               f"(not {scheme}://; the dashboard's http:// address is not the scheduler's)")
+    host, colon, port_text = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not colon or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536 or "/" in rest:
+        raise BatchUnavailable(f"scheduler address {address!r} is malformed: expected tcp://HOST:PORT "
+                               "(port 1-65535), e.g. tcp://127.0.0.1:8786")
+    return host, int(port_text)
+
+
+def probe_scheduler(address: str, timeout_s: float) -> None:
+    """Check within ``timeout_s`` (per step) that a Dask scheduler answers at ``address``; BatchUnavailable if not.
+
+    A Dask scheduler speaks first: right after accepting a connection it sends its handshake
+    (an 8-byte little-endian length, then msgpack frames). A listener that accepts and stays
+    silent (an HTTP server, a stalled process) or sends something else is refused here, so no
+    later wait of the Dask client can hang on it.
+    """
+    import socket
+
+    host, port = scheduler_endpoint(address)
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except TimeoutError:
+        raise BatchUnavailable(f"cannot reach the Dask scheduler at {address}: no connection within "
+                               f"{timeout_s:g} s") from None
+    except OSError as exc:
+        raise BatchUnavailable(f"cannot reach the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    try:
+        sock.settimeout(timeout_s)
+        head = b""
+        deadline = time.monotonic() + timeout_s
+        while len(head) < 8 and time.monotonic() < deadline:
+            chunk = sock.recv(8 - len(head))
+            if not chunk:
+                break
+            head += chunk
+    except TimeoutError:
+        raise BatchUnavailable(f"{address} accepted the connection but sent nothing within {timeout_s:g} s: "
+                               "not a Dask scheduler (or a stalled one)") from None
+    except OSError as exc:
+        raise BatchUnavailable(f"cannot talk to the Dask scheduler at {address}: {exc.strerror or exc}") from None
+    finally:
+        sock.close()
+    if len(head) < 8 or not 0 < int.from_bytes(head, "little") < 1 << 24:
+        raise BatchUnavailable(f"{address} answered, but not as a Dask scheduler does")
+
+
 def _cancelled_check() -> Callable[[], bool] | None:
     """In a Dask task: a function telling whether the client cancelled this task."""
     try:
@@ -209,6 +268,7 @@ class BatchPool:
 
             self.client.register_plugin(IgnoreInterrupt())  # our own workers: Ctrl-C is the client's business
         else:
+            probe_scheduler(self.scheduler, self.connect_timeout_s)
             try:
                 self.client = Client(self.scheduler, timeout=f"{self.connect_timeout_s}s", set_as_default=False)
             except (OSError, TimeoutError) as exc:

@@ -20,6 +20,7 @@ import numpy as np
 
 from mre_common.atomic_files import atomic_write_text
 from orchestration.case_study.benchmark_criteria import CRITERIA, EFFORT, NAMES, effort, normalised, raw_criteria
+from orchestration.case_study.case_metrics import pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.case_rendering import TIE, Block, fmt
 
@@ -96,8 +97,9 @@ def _span(values: list[float]) -> str:
         f"{values[0]:.1f}–{values[-1]:.1f} %"
 
 
-def pareto_plot(rows: Rows, records: list[str], best: str, path: Path) -> Path:
-    """J3 against J5 per record, every strategy a point, the best constant current marked."""
+def pareto_plot(rows: Rows, records: list[str], best: str, baseline: str, path: Path) -> Path:
+    """J3 against J5 per record, every strategy a point (the baseline, at (1, 1), left out), the best constant
+    current marked with a star, the non-dominated strategies joined by a line."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -107,23 +109,29 @@ def pareto_plot(rows: Rows, records: list[str], best: str, path: Path) -> Path:
     cols = min(n, 2)
     fig, axes = plt.subplots((n + cols - 1) // cols, cols, figsize=(6 * cols, 4.5 * ((n + cols - 1) // cols)),
                              squeeze=False)
-    names = list(dict.fromkeys(row["strategy"] for row in rows))
+    names = [s for s in dict.fromkeys(row["strategy"] for row in rows) if s != baseline]
     cmap = plt.get_cmap("tab10")
+    markers = "osD^v<>phX"
     for ax, r in zip(axes.flat, records, strict=False):
+        points = []
         for k, s in enumerate(names):
             row = next((x for x in rows if x["record"] == r and x["strategy"] == s), None)
             if row is None or not (math.isfinite(row["J3"]) and math.isfinite(row["J5"])):
                 continue
             is_best = s == best
-            ax.scatter(row["J3"], row["J5"], s=220 if is_best else 45, marker="*" if is_best else "o",
+            points.append((row["J3"], row["J5"]))
+            ax.scatter(row["J3"], row["J5"], s=260 if is_best else 50, marker="*" if is_best else markers[k % 10],
                        color="k" if is_best else cmap(k % 10), zorder=3, label=s)
-            ax.annotate(s, (row["J3"], row["J5"]), fontsize=7, xytext=(4, 3), textcoords="offset points")
+        front = sorted(points[k] for k in pareto_front(points))
+        if len(front) > 1:
+            ax.plot(*zip(*front, strict=True), color="0.6", lw=1, zorder=1)
         ax.set_title(r)
         ax.set_xlabel("J3 peak base displacement / baseline's")
         ax.set_ylabel("J5 peak floor acceleration / baseline's")
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7, loc="best")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp.png")
@@ -155,16 +163,17 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
                          + "; ".join(f"{k}: {v}" for k, v in NAMES.items()) + ". Definitions, in SI: "
                          "`orchestration/case_study/benchmark_criteria.py`, docs/controllers.md."),
               Block("h", "Ranking per record", level=3),
-              Block("p", f"By the mean of J1…J8 over **{baseline}** (the ranking is the same over any baseline "
-                         "per criterion only up to the weights the baseline gives each criterion).")]
+              Block("p", f"By the mean of J1…J8 over **{baseline}**, lower first (the mean weighs each criterion "
+                         "by the baseline's value, so another baseline can reorder close strategies).")]
     for r in records:
         ranked = ranking(rows, r)
         blocks.append(Block("p", f"**{r}**: " + ", ".join(f"{k + 1}. {s} ({fmt(v)})"
                                                            for k, (s, v) in enumerate(ranked))))
-    fig = pareto_plot(rows, records, best, folder / "figures" / "benchmark_pareto_J3_J5.png")
+    fig = pareto_plot(rows, records, best, baseline, folder / "figures" / "benchmark_pareto_J3_J5.png")
     blocks.append(Block("img", str(fig.relative_to(folder)), items=[
-        f"J3 (peak base displacement) against J5 (peak floor acceleration), both over {baseline}; "
-        f"the star is the best constant current ({best})"]))
+        f"J3 (peak base displacement) against J5 (peak floor acceleration), both over {baseline} (which sits "
+        f"at (1, 1), not drawn); the star is the best constant current ({best}); the grey line joins the "
+        "non-dominated strategies"]))
     blocks.append(Block("h", "Against the best constant current", level=3))
     blocks.append(Block("p", f"J5 of each strategy over {best}'s on the same record (this ratio does not depend on "
                              "the baseline); a difference within 1 % is a tie."))

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.case_study.strategies import (
     SHIPPED,
@@ -24,15 +24,23 @@ from orchestration.case_study.strategies import (
 )
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems
-from orchestration.master.yaml_source import load_tree
+from orchestration.master.yaml_source import YAML_BOOLEANS, load_tree
 
 STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")
 UNCONTROLLED = "passive-off"
 SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
 
 
+MAX_SWEEP_POINTS = 10_001
+"""Most constant currents a sweep may try (each is a co-simulation per record)."""
+MAX_TUNING_EVALS = 100_000
+"""Most Latin-hypercube samples, and most Nelder-Mead evaluations, of a tuning (each a simulation per record)."""
+MAX_TIMEOUT_S = 7 * 86400.0
+"""Longest per-process timeout [s] a study may set (a week): a timeout is a bound, not a wish."""
+
+
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no NaN or infinity anywhere
 
 
 class SweepSpec(_Strict):
@@ -54,6 +62,9 @@ class SweepSpec(_Strict):
             raise ValueError(f"sweep.step must be positive, got {self.step}")
         if self.start < 0 or (self.stop is not None and self.stop < self.start):
             raise ValueError("sweep needs 0 <= start <= stop")
+        if self.stop is not None and (self.stop - self.start) / self.step + 1 > MAX_SWEEP_POINTS:
+            raise ValueError(f"the sweep from {self.start:g} A to {self.stop:g} A in steps of {self.step:g} A tries "
+                             f"more than {MAX_SWEEP_POINTS:,} currents; use a larger sweep.step")
         return self
 
 
@@ -87,9 +98,9 @@ class TuningSpec(_Strict):
 
     record: str | list[str] = "elcentro"  # one record, or several: J is then their mean
     stop_time: float | None = None  # s; None: the record scenario's own stop time (every tuning record)
-    seed: int = 1
-    n_samples: int = 24  # seeded Latin-hypercube samples
-    max_evals: int = 80  # Nelder-Mead evaluations from the best sample
+    seed: int = Field(1, ge=0, lt=2**32)
+    n_samples: int = Field(24, ge=1, le=MAX_TUNING_EVALS)  # seeded Latin-hypercube samples
+    max_evals: int = Field(80, ge=0, le=MAX_TUNING_EVALS)  # Nelder-Mead evaluations from the best sample
     # lam [1/s], rho [A/s], theta [m^0.5 s^-1.5], ratio = zeta theta / rho [-]; optional s_release [m/s]: the
     # release band (not in the paper) is then tuned too, else it stays 0 (the paper's law)
     bounds: dict[str, tuple[float, float]] = Field(default_factory=lambda: {
@@ -99,6 +110,13 @@ class TuningSpec(_Strict):
     def records(self) -> list[str]:
         """The tuning records, in order."""
         return [self.record] if isinstance(self.record, str) else list(self.record)
+
+    @field_validator("stop_time")
+    @classmethod
+    def _stop_time(cls, value: float | None) -> float | None:
+        if value is not None and not value > 0:
+            raise ValueError(f"tuning.stop_time must be positive (s), got {value}")
+        return value
 
     @field_validator("record")
     @classmethod
@@ -149,7 +167,7 @@ class BenchmarkSpec(_Strict):
 class ReferenceSpec(_Strict):
     """Monolithic Radau reference of the passive strategies (constant currents)."""
 
-    enabled: bool = True
+    enabled: StrictBool = True  # true or false, not "yes" or 1
     rtol: float = 1e-8
     tolerance: float = 0.25  # largest relative peak error accepted (README, coupling error)
 
@@ -167,8 +185,8 @@ class StudySpec(_Strict):
     overrides: list[str] = Field(default_factory=list)
     i_max: float = 3.0
     paper_current_range: tuple[float, float] = (0.0, 2.5)
-    x_identified: float = 0.008  # m
-    x_limit: float = 0.015  # m
+    x_identified: float = Field(0.008, gt=0.0)  # m
+    x_limit: float = Field(0.015, gt=0.0)  # m
     gains: str = "sosm_gains.yaml"
     sweep: SweepSpec = Field(default_factory=SweepSpec)
     objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
@@ -177,7 +195,7 @@ class StudySpec(_Strict):
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
     workers: int | None = None  # local cluster: worker processes (None: one per core)
     max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
-    timeout_s: float | None = 1800.0  # per co-simulation process
+    timeout_s: float | None = Field(1800.0, gt=0.0, le=MAX_TIMEOUT_S)  # [s] per co-simulation process (a bound)
     output: str = "studies"
 
     @model_validator(mode="after")
@@ -194,6 +212,13 @@ class StudySpec(_Strict):
             raise ValueError("workers must be at least 1")
         if self.max_worker_deaths < 0:
             raise ValueError("max_worker_deaths must not be negative")
+        low, high = self.paper_current_range
+        if not 0 <= low <= high:
+            raise ValueError(f"paper_current_range needs 0 <= low <= high (A), got {low:g}, {high:g}")
+        if self.sweep.stop is None and (self.i_max - self.sweep.start) / self.sweep.step + 1 > MAX_SWEEP_POINTS:
+            raise ValueError(f"the sweep from {self.sweep.start:g} A to i_max = {self.i_max:g} A in steps of "
+                             f"{self.sweep.step:g} A tries more than {MAX_SWEEP_POINTS:,} currents; use a larger "
+                             "sweep.step")
         if self.fig15.i_max > self.i_max:
             raise ValueError(f"fig15.i_max ({self.fig15.i_max} A) must not exceed i_max ({self.i_max} A)")
         return self
@@ -214,13 +239,19 @@ class LoadedStudy:
         """Every strategy the study may name: the shipped file, its strategy_files, its own definitions."""
         if self._library is None:
             library = read_strategy_file(SHIPPED)
-            for f in self.spec.strategy_files:
+            for k, f in enumerate(self.spec.strategy_files):
                 p = Path(f)
-                library.update(read_strategy_file(p if p.is_absolute() else self.path.parent / p))
+                library.update(read_strategy_file(p if p.is_absolute() else self.base_dir("strategy_files", k) / p))
             library.update(inline_strategies(self.spec.strategy_definitions, self.path, self.lines,
                                              "strategy_definitions"))
             self._library = library
         return self._library
+
+    def base_dir(self, *key: Any) -> Path:
+        """Folder that a relative path at ``key`` is relative to: that of the file that wrote the key (a study
+        reached through ``extends`` keeps its own folder); this study file's folder for ``--set`` and defaults."""
+        file, _ = self.lines.get(tuple(key), ("", None))
+        return Path(file).parent if file and not file.startswith("--set") and Path(file).is_file() else self.path.parent
 
     def strategy(self, name: str) -> Strategy:
         """A strategy the study names."""
@@ -229,7 +260,7 @@ class LoadedStudy:
     def scenario_path(self, record: str) -> Path:
         """Scenario file of a record (absolute)."""
         p = Path(self.spec.records[record])
-        return p if p.is_absolute() else (self.path.parent / p).resolve()
+        return p if p.is_absolute() else (self.base_dir("records", record) / p).resolve()
 
     @property
     def gains_path(self) -> Path:
@@ -238,14 +269,24 @@ class LoadedStudy:
 
     def gain_set_path(self, strategy: str) -> Path:
         """The gains file of an SOSM strategy (``sosm`` or ``sosm-fig15``), absolute."""
+        key = ("gains",) if strategy == "sosm" else ("fig15", "gains")
         p = Path(self.spec.gains if strategy == "sosm" else self.spec.fig15.gains)
-        return p if p.is_absolute() else (self.path.parent / p).resolve()
+        return p if p.is_absolute() else (self.base_dir(*key) / p).resolve()
 
     def gain_set(self, strategy: str) -> tuple[float, ObjectiveSpec, TuningSpec]:
         """Controller current limit [A], objective and tuning of an SOSM strategy."""
         if strategy == "sosm":
             return self.spec.i_max, self.spec.objective, self.spec.tuning
         return self.spec.fig15.i_max, self.spec.fig15.objective, self.spec.fig15.tuning
+
+
+def key_files(study_file: Path) -> dict:
+    """Which file of an ``extends`` chain wrote each key of a study file (relative paths are relative to it), as
+    it reads now; empty if it cannot be read (the paths are then relative to the study file). For ``--resume``."""
+    try:
+        return load_tree(study_file)[1]
+    except (ScenarioError, OSError, ValueError):
+        return {}
 
 
 def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:
@@ -258,6 +299,9 @@ def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...
             value = yaml.safe_load(text)
         except yaml.YAMLError as exc:
             raise ScenarioError(Problem(f"value is not YAML: {exc}", key, f"--set {assignment}")) from None
+        if isinstance(value, bool) and text.strip() not in YAML_BOOLEANS:
+            raise ScenarioError(Problem(f"{text.strip()!r} is a YAML 1.1 boolean: write true or false", key,
+                                        f"--set {assignment}"))
         node = data
         parts = key.strip().split(".")
         for part in parts[:-1]:
@@ -283,7 +327,7 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
     missing = [Problem(f"scenario file {study.scenario_path(r)} does not exist", f"records.{r}", str(path))
                for r in spec.records if not study.scenario_path(r).is_file()]
     for k, f in enumerate(spec.strategy_files):
-        p = Path(f) if Path(f).is_absolute() else path.parent / f
+        p = Path(f) if Path(f).is_absolute() else study.base_dir("strategy_files", k) / f
         if not p.is_file():
             file, line = lines.get(("strategy_files", k), (str(path), None))
             missing.append(Problem(f"strategy file {p.resolve()} does not exist", f"strategy_files.{k}", file, line))

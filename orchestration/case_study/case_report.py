@@ -326,9 +326,15 @@ def tables_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
 
 def reference_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
     """The passive runs against the monolithic Radau reference (the coupling error)."""
-    if not study.reference:
-        return []
     cfg = study.config
+    not_computed = study.provenance.get("references_not_computed") or []
+    note = [Block("p", f"Radau references of {len(not_computed)} passive run(s) not computed ("
+                       + ", ".join(k.removesuffix("/reference") for k in not_computed)
+                       + "): none cached for these inputs and this code. "
+                       "`python orchestration/study.py --verify ...` computes them (and caches them for later "
+                       "studies); `--resume DIR --verify` adds them to this folder.")] if not_computed else []
+    if not study.reference:
+        return [Block("h", "Passive runs against the monolithic reference", level=2), *note] if note else []
     rows = []
     for key, v in sorted(study.reference.items(), key=lambda kv: _order(kv[0], study)):
         r, s = key.split("/")
@@ -351,6 +357,7 @@ def reference_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
                    "(README, Coupling error). Full table in `reference.csv`."),
         Block("table", header=["record", "strategy", "x_base mm co-sim / Radau", "acc_3 co-sim / Radau",
                                "largest error", "mean |error|", "tolerance"], rows=rows),
+        *note,
     ]
 
 

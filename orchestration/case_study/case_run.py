@@ -10,6 +10,12 @@ content key (``jobs/``). A study folder is never overwritten; every file is writ
 atomically. ``--resume DIR`` finishes an interrupted study (only the jobs whose results are
 missing run); ``--report DIR`` regenerates the tables, figures and report from its data.
 
+The monolithic Radau references of the passive runs (the coupling-error check, ``reference.csv``)
+do not change between studies of the same inputs and code, and cost three quarters of the study:
+by default a study takes them from the user's cache of results (``$MRE_COSIM_CACHE/results``,
+keyed by content like ``jobs/``) and computes none; ``--verify`` computes the missing ones (and
+caches them for every later study, whatever its folder).
+
 Exit codes: 0 every job succeeded; 1 some jobs failed or the study was interrupted (the
 report lists them; the other results are complete); 2 configuration error or no usable
 Dask cluster (nothing written).
@@ -26,9 +32,9 @@ from typing import Any
 from orchestration.batch.jobs import write_run_files
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import PortablePlan, file_bytes
-from orchestration.batch.store import ResultStore
+from orchestration.batch.store import ResultStore, check_folder, open_for_resume
 from orchestration.case_study import case_jobs
-from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, key_files, load_study
 from orchestration.case_study.case_jobs import (
     BENCHMARK_OUTPUTS_OVERRIDE,
     OUTPUTS_OVERRIDE,
@@ -62,6 +68,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              "--set 'strategies=[passive-off, sosm]'")
     parser.add_argument("--out", type=Path, help="study folder to create (must not exist or be empty)")
     add_pool_arguments(parser)
+    parser.add_argument("--verify", action="store_true",
+                        help="compute the Radau references of the passive runs that are not cached yet (by default "
+                             "only cached ones are reported: they do not change between studies)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
     parser.add_argument("--resume", type=Path, metavar="DIR",
@@ -116,10 +125,21 @@ def new_record(study: LoadedStudy, prepared: PreparedStudy, pool: BatchPool, com
     return record
 
 
-def count_jobs(spec: StudySpec) -> int:
-    """Jobs of a study: sweeps, co-simulations and references."""
+def shared_store() -> ResultStore | None:
+    """The results kept across studies (``$MRE_COSIM_CACHE/results/jobs``, by content key), or None if no cache."""
+    from mre_common.c_compile import NoCacheFolder, cache_dir
+
+    try:
+        return ResultStore(cache_dir() / "results")
+    except (NoCacheFolder, OSError):
+        return None
+
+
+def count_jobs(spec: StudySpec, verify: bool = True) -> int:
+    """Jobs of a study: sweeps, co-simulations and (``verify``) references."""
     n = len(spec.records)
     references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
+    references *= verify
     return n * ("best-constant" in spec.strategies) + n * len(spec.strategies) + n * references
 
 
@@ -133,6 +153,8 @@ class JobRunner:
         self.collected: dict[str, JobResult] = {}  # label -> every finished job, also when interrupted
         self.labels: dict[str, str] = {}  # content key -> job label (record/strategy[/reference])
         self.shared: dict[str, Any] = {}  # SHA-256 -> handle of the file's bytes on the cluster
+        self.cache_for: dict[str, ResultStore] = {}  # content key -> the store across studies its result goes to
+        self.untracked: set[str] = set()  # content keys the progress bar does not count
 
     def files_of(self, pp: PortablePlan) -> dict[str, Any]:
         """The handles of a plan's files on the cluster (each file shared once)."""
@@ -153,11 +175,14 @@ class JobRunner:
         if res.output or res.details:
             (self.folder / "logs" / f"{label.replace('/', '-')}.log").write_text(res.output + res.details)
         if not stored:
-            self.store.put(content_key,
-                           {"label": label, "ok": res.ok, "status": res.status, "value": value, "error": res.error,
-                            "wall_time_s": res.wall_time_s, "worker": res.worker})
+            result = {"label": label, "ok": res.ok, "status": res.status, "value": value, "error": res.error,
+                      "wall_time_s": res.wall_time_s, "worker": res.worker}
+            self.store.put(content_key, result)
+            if res.ok and content_key in self.cache_for:
+                self.cache_for[content_key].put(content_key, result)
         self.collected[label] = res
-        self.bar.done(res.ok and not (isinstance(value, dict) and value.get("complete") is False))
+        if content_key not in self.untracked:
+            self.bar.done(res.ok and not (isinstance(value, dict) and value.get("complete") is False))
         if not res.ok:
             self.bar.write(f"FAILED {label}: {res.error}")
         elif isinstance(value, dict) and "time_beyond_identified_range_s" in value:
@@ -175,21 +200,40 @@ class JobRunner:
                            f"the identified ±{1e3 * spec.x_identified:g} mm for "
                            f"{v['time_beyond_identified_range_s']:.3g} s (isolator model extrapolated){limit}")
 
-    def run(self, fn: Any, jobs: list[PlannedJob], isolate: bool) -> None:
-        """Jobs (label, key, plan, inputs): stored results reused, the others run on the pool."""
-        todo = []
+    def run(self, fn: Any, jobs: list[PlannedJob], isolate: bool, cache: ResultStore | None = None,
+            compute: bool = True) -> list[str]:
+        """Jobs (label, key, plan, inputs): stored results reused, the others run on the pool.
+
+        ``cache``: a store kept across studies, looked up after the study's own (a result found there is
+        copied into the study's ``jobs/``, marked ``reused_from``) and given every new successful result.
+        ``compute=False``: jobs found in neither store are not run; returns their labels.
+        """
+        todo, skipped = [], []
         for label, key, pp, extra in jobs:
             self.labels[key] = label
             old = self.store.get(key)
+            if old is None and cache is not None:
+                old = cache.get(key, strict=False)  # the cache across studies: a damaged entry is computed again
+                if old is not None and old.get("ok"):
+                    self.store.put(key, {**old, "label": label, "reused_from": str(cache.folder)})
+                else:
+                    old = None
+            if cache is not None:
+                self.cache_for[key] = cache
+            if not compute:
+                self.untracked.add(key)
             if old is not None:
                 self.done(JobResult(key, old["ok"], old.get("value"), old.get("error"), "",
                                     old.get("wall_time_s", 0.0), old["status"], old.get("worker")), stored=True)
-            else:
+            elif compute:
                 todo.append((key, {"plan": pp, "files": self.files_of(pp), **extra}))
+            else:
+                skipped.append(label)
         if todo:
             self.record.jobs_computed += len(todo)
             self.pool.map(fn, [p for _, p in todo], [k for k, _ in todo], isolate=isolate,
                           timeout_s=self.spec.timeout_s, on_done=self.done)
+        return skipped
 
 
 def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
@@ -259,18 +303,20 @@ def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
 
 
 def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, progress: bool,
-              command: list[str], resumed: CaseStudyRecord | None = None) -> int:
+              command: list[str], resumed: CaseStudyRecord | None = None, verify: bool = False) -> int:
     """Run every job of a prepared study into ``folder`` on ``pool``; returns the exit code.
 
     Each job's result is stored under its content key (:class:`ResultStore`); with ``resumed``
     (the study.json of an earlier, unfinished run of this folder) stored results are reused.
+    The Radau references come from the cache across studies (:func:`shared_store`); ``verify``
+    computes the ones it lacks.
     """
     spec = study.spec
     record = new_record(study, prepared, pool, command, resumed)
     (folder / "logs").mkdir(exist_ok=True)
     (folder / "runs").mkdir(exist_ok=True)
     write_json(folder / "study.json", record.to_json())
-    bar = ProgressBar(count_jobs(spec), spec.name, enabled=progress)
+    bar = ProgressBar(count_jobs(spec, verify), spec.name, enabled=progress)
     bar.write(pool.describe())
     runner = JobRunner(folder, record, spec, pool, bar)
     interrupted = False
@@ -279,7 +325,8 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
             run_sweeps(study, runner)
         runs, references = plan_runs(study, runner)
         runner.run(cosim_job, runs, isolate=True)
-        runner.run(reference_job, references, isolate=False)
+        skipped = runner.run(reference_job, references, isolate=False, cache=shared_store(), compute=verify)
+        record.provenance["references_not_computed"] = skipped  # neither cached nor asked for (--verify)
     except KeyboardInterrupt:
         interrupted = True
         bar.write("interrupted: writing the report of the finished runs")
@@ -301,8 +348,8 @@ def resumed_study(folder: Path) -> tuple[LoadedStudy, CaseStudyRecord]:
         data = read_study(folder)
         config = {k: v for k, v in data.config.items() if k != "sweep_currents"}
         spec = StudySpec.model_validate(config)
-        return LoadedStudy(spec, Path(data.study_file), config), data
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+        return LoadedStudy(spec, Path(data.study_file), config, key_files(Path(data.study_file))), data
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise ScenarioError(f"{folder}: not a study folder that can be resumed ({type(exc).__name__}: {exc})"
                             ) from None
 
@@ -335,22 +382,35 @@ def main(argv: list[str] | None = None) -> int:
     if args.report is not None:
         try:
             data = read_study(args.report)
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            print(f"error: cannot read {args.report / 'study.json'}: {exc}", file=sys.stderr)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            print(f"error: cannot read {args.report / 'study.json'}: {type(exc).__name__}: {exc}", file=sys.stderr)
             return 2
-        write_outputs(args.report, data)
+        try:
+            write_outputs(args.report, data)
+        except OSError as exc:
+            print(f"error: cannot write the report into {args.report}: {exc.strerror or exc}"
+                  f"{f' ({exc.filename})' if exc.filename else ''}", file=sys.stderr)
+            return 2
+        except (ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:  # study.json edited by hand
+            print(f"error: {args.report / 'study.json'} is not what study.py wrote: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
+            return 2
         print(f"report regenerated: {args.report / 'report.md'}")
         return 0
     resumed = None
+    claim = None
     try:
         if args.resume is not None:
             study, resumed = resumed_study(args.resume)
+            _store, claim = open_for_resume(args.resume, "study.json", "study.py")  # StoreError: exit 2
         else:
             try:
                 study = load_study(args.study, tuple(args.overrides))
             except ScenarioError:
                 require_kind(args.study, "study")  # a run scenario: name run.py instead
                 raise
+        if args.resume is None:  # names and paths the file system cannot hold: exit 2 before any work
+            check_folder(study.spec.name, Path(study.spec.output), args.out, study.lines, study.path)
         if args.base_sensitivity:
             return _base_sensitivity(args, study, sys.argv[1:] if argv is None else argv)
         prepared = prepare(study)
@@ -358,7 +418,9 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as exc:
         print(exc.report(), file=sys.stderr)
         return 2
-    except (NotMonolithic, BatchUnavailable, ValueError) as exc:
+    except (NotMonolithic, BatchUnavailable, ValueError) as exc:  # StoreError is a ValueError
+        if claim is not None:
+            claim.unlink(missing_ok=True)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     try:
@@ -371,6 +433,9 @@ def main(argv: list[str] | None = None) -> int:
 
     # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
     try:
-        return run_study(study, folder, prepared, pool, not args.quiet, [sys.executable, *sys.argv], resumed)
+        return run_study(study, folder, prepared, pool, not args.quiet, [sys.executable, *sys.argv], resumed,
+                         verify=args.verify)
     finally:
         pool.close()
+        if claim is not None:
+            claim.unlink(missing_ok=True)

@@ -519,6 +519,10 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             raise ScenarioError(f"{where}.record {unknown} is not one of the records {list(spec.records)}")
         out = args.out if args.out is not None else study.gain_set_path(args.gain_set)
+        from mre_common.fs_limits import path_problem
+
+        if (problem := path_problem(out, 32)) is not None:  # the atomic write's temporary name is longer
+            raise ScenarioError(f"{'--out' if args.out is not None else 'gains'}: {problem}")
         if out.exists() and not args.force:
             print(f"error: {out} exists: pass --force to replace it", file=sys.stderr)
             return 2
@@ -535,6 +539,13 @@ def main(argv: list[str] | None = None) -> int:
     with pool:
         print(pool.describe(), file=sys.stderr)
         result, checks, document = tune_and_check(study, args.gain_set, plans, pool, not args.quiet)
+    g = result["gains"]
+    values = (result["objective"], g.lam, g.rho, g.zeta, g.theta, g.s_release)
+    if not all(np.isfinite(v) for v in values):
+        print(f"error: the tuning ended with J = {result['objective']} and gains lambda = {g.lam}, rho = {g.rho}, "
+              f"zeta = {g.zeta}, theta = {g.theta}: not finite (a simulation without finite peaks?); {out} not "
+              "written", file=sys.stderr)
+        return 1
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, document)
     _summary(result, checks, tuning.records, out)

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.case_study.case_config import apply_overrides
 from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
@@ -27,11 +27,20 @@ QUANTITIES = {
     "isolator_displacement": ("x_base_mm", 1e-3, "m"),
     "storey_drift": ("drift_max_mm", 1e-3, "m"),
     "floor_acceleration": ("acc_max", 1.0, "m/s²"),
+    "residual_drift": ("residual_drift_max_mm", 1e-3, "m"),  # largest |residual drift| at the end of the run
+    "drift_ratio": ("drift_ratio_max", 1.0, "1"),  # largest peak drift_j / h_j (storey_heights)
+    "collapse": ("drift_ratio_max", 1.0, "1"),  # a drift ratio, or a run that collapsed (COLLAPSED_STATUS)
 }
+# Quantities measured against the storey heights (the study's ``storey_heights``).
+RATIO_QUANTITIES = ("drift_ratio", "collapse")
+
+
+MAX_LEVELS = 1000
+"""Most intensity levels of a ladder (each is a run per record component and strategy)."""
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)  # no NaN or infinity anywhere
 
 
 class FolderSuite(_Strict):
@@ -44,7 +53,7 @@ class FolderSuite(_Strict):
 class WindowSpec(_Strict):
     """Which part of each record runs: the strong-motion window (else the whole record), then free vibration."""
 
-    strong_motion: bool = True
+    strong_motion: StrictBool = True  # true or false, not "yes" or 1
     tail_s: float = Field(2.0, ge=0.0)  # [s] simulated after the window ends (ground at rest)
 
 
@@ -63,6 +72,8 @@ class IntensitySpec(_Strict):
     def _ladder(cls, value: list[float]) -> list[float]:
         if not value:
             raise ValueError("the intensity ladder needs at least one level")
+        if len(value) > MAX_LEVELS:
+            raise ValueError(f"the intensity ladder has {len(value):,} levels: at most {MAX_LEVELS:,}")
         bad = [v for v in value if not (math.isfinite(v) and v > 0)]
         if bad:
             raise ValueError(f"intensity levels must be positive numbers, got {bad}")
@@ -82,9 +93,21 @@ class IntensitySpec(_Strict):
 class LimitStateSpec(_Strict):
     """Exceeded when the run's peak ``quantity`` goes beyond ``threshold`` (SI: m, m, m/s²)."""
 
-    quantity: Literal["isolator_displacement", "storey_drift", "floor_acceleration"]
+    quantity: Literal["isolator_displacement", "storey_drift", "floor_acceleration", "residual_drift",
+                      "drift_ratio", "collapse"]
     threshold: float = Field(gt=0.0)
     label: str = ""
+
+
+class CollapseMarginSpec(_Strict):
+    """FEMA P695's S_MT: the MCE spectral acceleration at the building's period [g], and where it comes from.
+
+    Collapse margin ratio CMR = S_CT / S_MT, S_CT the median collapse intensity (FEMA P695, 2009,
+    *Quantification of Building Seismic Performance Factors*, section 6.3). Needs ``intensity.measure: sa``.
+    """
+
+    s_mt: float = Field(gt=0.0)  # [g]
+    source: str  # the design spectrum and period it is read from
 
 
 class CustomStrategy(_Strict):
@@ -106,13 +129,15 @@ class IdaSpec(_Strict):
     intensity: IntensitySpec
     strategies: list[str | CustomStrategy] = Field(default_factory=lambda: ["passive-off", "passive-on", "sosm"])
     limit_states: dict[str, LimitStateSpec]
+    storey_heights: list[float] | None = None  # [m] h_j of storeys 1..n: for drift_ratio and collapse
+    collapse_margin: CollapseMarginSpec | None = None  # S_MT for FEMA P695's CMR (else the ratio to the records)
     overrides: list[str] = Field(default_factory=list)
     i_max: float = Field(3.0, gt=0.0)
     gains: str = "sosm_gains.yaml"
     confidence: float = Field(0.95, gt=0.0, lt=1.0)
     workers: int | None = Field(None, ge=1)
     max_worker_deaths: int = Field(2, ge=0)
-    timeout_s: float | None = 900.0  # per run
+    timeout_s: float | None = Field(900.0, gt=0.0, le=7 * 86400.0)  # [s] per run: a bound (at most a week)
     output: str = "studies"
 
     @field_validator("suite", mode="before")
@@ -148,6 +173,13 @@ class IdaSpec(_Strict):
     def _period_needed(self) -> IdaSpec:
         if self.intensity.measure == "pga" and self.intensity.period_s is not None:
             raise ValueError("intensity.period_s is for measure 'sa' only")
+        ratios = [n for n, ls in self.limit_states.items() if ls.quantity in RATIO_QUANTITIES]
+        if ratios and not self.storey_heights:
+            raise ValueError(f"limit states {ratios} are drift ratios: give storey_heights [m], one per storey")
+        if self.storey_heights is not None and not all(math.isfinite(h) and h > 0 for h in self.storey_heights):
+            raise ValueError(f"storey_heights must be positive lengths [m], got {self.storey_heights}")
+        if self.collapse_margin is not None and self.intensity.measure != "sa":
+            raise ValueError("collapse_margin (FEMA P695's S_MT) needs intensity.measure 'sa'")
         return self
 
     @property
@@ -158,13 +190,21 @@ class IdaSpec(_Strict):
 class LoadedIda:
     """A validated IDA study with its file (paths in it are relative to that file)."""
 
-    def __init__(self, spec: IdaSpec, path: Path) -> None:
+    def __init__(self, spec: IdaSpec, path: Path, lines: dict | None = None) -> None:
         self.spec = spec
         self.path = path
+        self.lines = lines or {}
 
-    def resolve(self, name: str) -> Path:
+    def base_dir(self, *key: Any) -> Path:
+        """Folder that a relative path at ``key`` is relative to: that of the file that wrote the key (a study
+        reached through ``extends`` keeps its own folder); this study file's folder for ``--set`` and defaults."""
+        file, _ = self.lines.get(tuple(key), ("", None))
+        return Path(file).parent if file and not file.startswith("--set") and Path(file).is_file() else self.path.parent
+
+    def resolve(self, name: str, *key: Any) -> Path:
+        """A path of the study (``key``: where the file sets it), absolute."""
         p = Path(name)
-        return p if p.is_absolute() else (self.path.parent / p).resolve()
+        return p if p.is_absolute() else (self.base_dir(*key) / p).resolve()
 
 
 
@@ -185,4 +225,4 @@ def load_ida(path: Path | str, overrides: tuple[str, ...] = ()) -> tuple[LoadedI
         spec = IdaSpec.model_validate(data)
     except ValidationError as exc:
         return None, validation_problems(exc, lines, path, IdaSpec), data
-    return LoadedIda(spec, path), [], data
+    return LoadedIda(spec, path, lines), [], data

@@ -33,6 +33,8 @@ def im_label(info: IdaInfo) -> str:
 def threshold_text(quantity: str, threshold: float) -> str:
     """A limit state's threshold in its unit (mm for displacements)."""
     _, _, unit = QUANTITIES[quantity]
+    if unit == "1":  # a drift ratio
+        return f"{100 * threshold:g} % of the storey height"
     return f"{1e3 * threshold:g} mm" if unit == "m" else f"{threshold:g} {unit}"
 
 

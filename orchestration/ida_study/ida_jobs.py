@@ -11,8 +11,47 @@ from typing import Any
 from orchestration.batch.jobs import job_plan
 
 LIMIT_MARK = "exceeds the limit"  # the master's message when a limits.max_abs bound stops a run
+# The OpenSees building unit's message when a step does not converge (also with 10x shorter steps): the
+# structure has lost its stability, so the run counts as a collapse at its intensity, not as an error.
+COLLAPSE_MARK = "OpenSees' transient analysis failed to converge"
+COLLAPSED_STATUS = "collapsed"
 # The code that decides this job's numbers, besides the engine's (orchestration.batch.portable.job_key).
 CODE_SOURCES = ("components/physics", "orchestration/ida_study/ida_jobs.py", "orchestration/case_study/analysis.py")
+
+
+def run_status(complete: bool, error: str | None, status: str) -> str:
+    """A run's status in the stripes: ok; diverged (the scenario's divergence limit); collapsed (COLLAPSE_MARK);
+    else the master's (failed, ...)."""
+    if complete:
+        return "ok"
+    if error and LIMIT_MARK in error:
+        return "diverged"
+    if error and COLLAPSE_MARK in error:
+        return COLLAPSED_STATUS
+    return status
+
+
+def residual_drifts(ts: dict[str, Any], storeys: dict[str, list[float]] | None) -> dict[str, float]:
+    """Residual drift of each storey at the end of the run [mm] and the largest |value| (``residual_drift_max_mm``).
+
+    With the storeys' constants (``storeys``: k_j [N/m], c_j [N s/m], pdelta_j = P_j/h_j [N/m], of a
+    ShearBuilding), residual_j = drift_j - f_j / k_j at the last sample, f_j = shear_j - c_j (v_j - v_{j-1})
+    + pdelta_j drift_j the storey law's force: the drift left when the storey is unloaded along k_j (the
+    unit's ``residual_drift_j``). Without them (another building unit) it is drift_j at the end of the
+    run, after the study's free-vibration tail: an upper bound that keeps the elastic sway left then.
+    """
+    out: dict[str, float] = {}
+    j = 1
+    while f"building.drift_{j}" in ts:
+        drift = float(ts[f"building.drift_{j}"][-1])
+        if storeys is not None:
+            dv = float(ts[f"building.v_{j}"][-1] - ts[f"building.v_{j - 1}"][-1])
+            force = float(ts[f"building.shear_{j}"][-1]) - storeys["c"][j - 1] * dv + storeys["pdelta"][j - 1] * drift
+            drift -= force / storeys["k"][j - 1]
+        out[f"residual_drift_{j}_mm"] = 1e3 * drift
+        j += 1
+    out["residual_drift_max_mm"] = max(abs(out[f"residual_drift_{i}_mm"]) for i in range(1, j)) if j > 1 else math.nan
+    return out
 
 
 def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
@@ -29,9 +68,11 @@ def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
     ts.update({name: rec.data[: rec.count, k].copy() for k, name in enumerate(rec.names)})
     result = outcome.result
     error = str(result.error) if result.error else None
-    status = "ok" if result.complete else ("diverged" if error and LIMIT_MARK in error else result.status)
+    status = run_status(result.complete, error, result.status)
     try:
         metrics = run_metrics(ts, payload["masses"]) if rec.count > 1 else {}
+        if metrics:
+            metrics.update(residual_drifts(ts, payload.get("storeys")))
     except KeyError as exc:  # a swapped unit without one of the variables
         metrics = {}
         error = error or f"variable {exc} not recorded"

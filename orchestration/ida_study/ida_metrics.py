@@ -12,9 +12,12 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from mre_common.atomic_files import atomic_write
 from orchestration.case_study.analysis import INDEX_COLUMNS, indices
-from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
+from orchestration.ida_study.ida_config import QUANTITIES, RATIO_QUANTITIES, IdaSpec
+from orchestration.ida_study.ida_jobs import COLLAPSED_STATUS
 from orchestration.ida_study.ida_records import ComponentInfo, RunOutcome
 from orchestration.master.runfolder import write_text
 
@@ -23,10 +26,11 @@ if TYPE_CHECKING:
 
 PEAKS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "drift_max_mm", "acc_0", "acc_1", "acc_2", "acc_3",
          "acc_max", "base_shear_N", "structure_shear_N", "isolator_force_N", "current_max_A", "current_mean_A",
-         "rms_x_base_mm", "rms_acc_max", "time_beyond_8mm_s", "time_beyond_15mm_s")
+         "rms_x_base_mm", "rms_acc_max", "time_beyond_8mm_s", "time_beyond_15mm_s", "residual_drift_1_mm",
+         "residual_drift_2_mm", "residual_drift_3_mm", "residual_drift_max_mm")
 COLUMNS = ("record", "component", "record_id", "intensity_measure", "intensity", "im_unscaled", "scale",
            "strategy", *PEAKS, *INDEX_COLUMNS[2:], "status", "error", "wall_time_s", "end_time_s", "key")
-ENDED = ("ok", "diverged")  # runs that count in the fragility stripes
+ENDED = ("ok", "diverged", COLLAPSED_STATUS)  # runs that count in the fragility stripes
 
 
 def run_label(component_id: str, level: float, strategy: str) -> str:
@@ -73,15 +77,62 @@ def result_rows(components: list[ComponentInfo], measure: str, results: dict[str
     return rows
 
 
-def exceeded(row: dict[str, Any], quantity: str, threshold: float) -> bool | None:
-    """Did a run exceed a limit state? None if the run does not count (failed, not run)."""
-    if row["status"] == "diverged":
+def drift_ratio(row: dict[str, Any], heights: list[float] | None) -> float | None:
+    """The largest peak drift ratio of a run: max over storeys of drift_j / h_j [1] (None without heights)."""
+    if not heights:
+        return None
+    ratios = [row.get(f"drift_{j}_mm") for j in range(1, len(heights) + 1)]
+    if any(r is None for r in ratios):
+        return None
+    return max(1e-3 * r / h for r, h in zip(ratios, heights, strict=True))
+
+
+def exceeded(row: dict[str, Any], quantity: str, threshold: float, heights: list[float] | None = None) -> bool | None:
+    """Did a run exceed a limit state? None if the run does not count (failed, not run).
+
+    A run stopped by the divergence limit, or that collapsed (the OpenSees unit did not converge),
+    exceeds every limit state; drift ratios use the storey heights ``heights`` [m].
+    """
+    if row["status"] in ("diverged", COLLAPSED_STATUS):
         return True
     if row["status"] != "ok":
         return None
+    if quantity in RATIO_QUANTITIES:
+        value = drift_ratio(row, heights)
+        return None if value is None else bool(value > threshold)
     column, factor, _ = QUANTITIES[quantity]
     value = row.get(column)
     return None if value is None else bool(value * factor > threshold)
+
+
+def collapse_margins(fits: dict[str, dict[str, Fit]], spec: IdaSpec, rows: list[dict[str, Any]]
+                     ) -> list[dict[str, Any]]:
+    """Per collapse limit state and strategy: the median collapse intensity S_CT and its margin.
+
+    With ``collapse_margin.s_mt``: FEMA P695's collapse margin ratio CMR = S_CT / S_MT (FEMA P695,
+    2009, Eq. 6-1; not adjusted by the spectral shape factor). Without it, S_MT cannot be computed
+    (it is read from a design spectrum): the ratio of S_CT to the median intensity of the study's
+    records at scale 1 instead (``margin_kind`` says which).
+    """
+    unscaled = sorted({r["record_id"]: r["im_unscaled"] for r in rows if r.get("im_unscaled")}.values())
+    records_median = float(np.median(unscaled)) if unscaled else math.nan
+    out = []
+    for name, by_strategy in fits.items():
+        if spec.limit_states[name].quantity != "collapse":
+            continue
+        for s, fit in by_strategy.items():
+            s_ct = fit.theta if fit.ok else math.nan
+            lo, hi = fit.theta_interval() if fit.ok else (math.nan, math.nan)
+            if spec.collapse_margin is not None:
+                kind, ref, source = "CMR (FEMA P695)", spec.collapse_margin.s_mt, spec.collapse_margin.source
+            else:
+                kind, ref = "S_CT / median IM of the records at scale 1 (not FEMA P695's CMR)", records_median
+                source = "no design spectrum given: S_MT cannot be computed"
+            out.append({"limit_state": name, "strategy": s, "fit": fit.kind, "s_ct": s_ct, "s_ct_low": lo,
+                        "s_ct_high": hi, "beta": fit.beta if fit.ok else math.nan, "reference": ref,
+                        "margin": s_ct / ref if ref else math.nan, "margin_kind": kind, "reference_source": source,
+                        "note": fit.note})
+    return out
 
 
 def fragilities(rows: list[dict[str, Any]], spec: IdaSpec) -> dict[str, dict[str, Fit]]:
@@ -94,7 +145,7 @@ def fragilities(rows: list[dict[str, Any]], spec: IdaSpec) -> dict[str, dict[str
         for s in spec.strategy_names:
             stripes = []
             for level in spec.intensity.levels:
-                marks = [exceeded(r, ls.quantity, ls.threshold) for r in rows
+                marks = [exceeded(r, ls.quantity, ls.threshold, spec.storey_heights) for r in rows
                          if r["strategy"] == s and r["intensity"] == level]
                 counted = [m for m in marks if m is not None]
                 stripes.append(Stripe(level, len(counted), sum(counted)))

@@ -18,7 +18,7 @@ from typing import Any
 
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
-from orchestration.case_study.case_jobs import OUTPUTS_OVERRIDE
+from orchestration.case_study.case_jobs import RECORDED
 from orchestration.case_study.strategies import strategy_overrides
 from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
 from orchestration.engine_hooks import plan_scenario
@@ -35,6 +35,10 @@ from orchestration.ida_study.suites import (
 )
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import load_scenario
+
+# The IDA records the case study's variables and the floors' velocities (the residual drift needs them).
+IDA_RECORDED = (*RECORDED, "building.v_1", "building.v_2", "building.v_3")
+OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(IDA_RECORDED) + "]"
 
 
 @dataclass
@@ -62,6 +66,7 @@ class PreparedIda:
     staging: Path
     planning_s: float = 0.0
     notes: list[str] = field(default_factory=list)
+    storeys: dict[str, list[float]] | None = None  # a ShearBuilding's k, c, P/h per storey (residual drift)
 
     def cleanup(self) -> None:
         shutil.rmtree(self.staging, ignore_errors=True)
@@ -78,11 +83,37 @@ def _masses(plan: Any) -> list[float]:
     return m
 
 
-def _suite(path: Path, spec: IdaSpec | None, raw: Any, problems: list[Problem]) -> list[SuiteRecord]:
+def storey_constants(plan: Any) -> dict[str, list[float]] | None:
+    """k_j [N/m], c_j [N s/m] and pdelta_j = P_j/h_j [N/m] of storeys 1..n when the building unit is a ShearBuilding
+    (it has parameters k_j, c_j: start values, with the scenario's values over them); None for another unit."""
+    desc = plan.descriptions.get("building")
+    if desc is None or "k_1" not in desc.variables or "c_1" not in desc.variables:
+        return None
+    values = {name: v.start for name, v in desc.variables.items() if v.causality == "parameter"}
+    values.update(plan.parameters.get("building", {}))
+
+    def number(name: str) -> float:
+        return float(values.get(name) or 0.0)
+
+    n = 0
+    while f"k_{n + 1}" in desc.variables:
+        n += 1
+    k = [number(f"k_{j}") for j in range(1, n + 1)]
+    c = [number(f"c_{j}") for j in range(1, n + 1)]
+    m = [number(f"m_{j}") for j in range(0, n + 1)]
+    pdelta = [0.0] * n
+    if str(values.get("p_delta", "false")).lower() in ("true", "1"):
+        g = 9.80665  # [m/s^2], as the unit
+        pdelta = [g * sum(m[j:]) / number(f"h_{j}") if number(f"h_{j}") > 0 else 0.0 for j in range(1, n + 1)]
+    return {"k": k, "c": c, "pdelta": pdelta}
+
+
+def _suite(path: Path, spec: IdaSpec | None, raw: Any, problems: list[Problem], base: Path | None = None
+           ) -> list[SuiteRecord]:
     """The suite's records (problems appended); without a spec, a folder suite and the file's kind are checked."""
     if spec is not None:
         suite = spec.suite if isinstance(spec.suite, str) else spec.suite.model_dump()
-        records, found = load_suite(suite, path.parent)
+        records, found = load_suite(suite, base or path.parent)
         problems += found
         return records
     if isinstance(raw, dict):
@@ -102,7 +133,7 @@ def _strategies(loaded: LoadedIda, problems: list[Problem]) -> tuple[dict[str, t
     gains_doc = None
     if "sosm" in spec.strategy_names:
         try:
-            gains, gains_doc = read_gains(loaded.resolve(spec.gains))
+            gains, gains_doc = read_gains(loaded.resolve(spec.gains, "gains"))
             if abs(gains.i_max - spec.i_max) > 1e-12:
                 problems.append(Problem(f"gains tuned for i_max = {gains.i_max} A, the study uses {spec.i_max} A: "
                                         "re-run the tuning", "gains"))
@@ -182,11 +213,11 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     started = time.perf_counter()
     problems = list(problems)
     spec = loaded.spec if loaded is not None else None
-    records = _suite(path, spec, raw, problems)
+    records = _suite(path, spec, raw, problems, loaded.base_dir("suite", "folder") if loaded is not None else None)
     if spec is None or loaded is None:
         raise ScenarioError(problems)
     strategies, gains_doc = _strategies(loaded, problems)
-    scenario = loaded.resolve(spec.scenario)
+    scenario = loaded.resolve(spec.scenario, "scenario")
     common = (*spec.overrides, f"isolator.i_max={spec.i_max!r}", f"controller.i_max={spec.i_max!r}",
               f"ground.time_scale={spec.time_scale!r}")
     step = None
@@ -209,5 +240,10 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    return PreparedIda(loaded, components, strategies, period, plans, _masses(first), gains_doc, staging,
-                       time.perf_counter() - started)
+    masses = _masses(first)
+    if spec.storey_heights is not None and len(spec.storey_heights) != len(masses) - 1:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise ScenarioError(Problem(f"storey_heights gives {len(spec.storey_heights)} heights, the building has "
+                                    f"{len(masses) - 1} storeys", "storey_heights"))
+    return PreparedIda(loaded, components, strategies, period, plans, masses, gains_doc, staging,
+                       time.perf_counter() - started, storeys=storey_constants(first))

@@ -22,7 +22,7 @@ import numpy as np
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import IdaSpec
 from orchestration.ida_study.ida_figures import threshold_text
-from orchestration.ida_study.ida_metrics import ENDED
+from orchestration.ida_study.ida_metrics import ENDED, collapse_margins
 from orchestration.ida_study.ida_records import IdaInfo
 
 
@@ -113,8 +113,9 @@ def _settings(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]]) -> list[
         + (f"wall time per run {min(walls):.2f}-{max(walls):.2f} s (median {float(np.median(walls)):.2f} s); "
            if walls else "")
         + f"study wall time {info.wall_time_s or 0:.0f} s on {info.batch['workers']} workers.",
-        "* A run stopped by the scenario's divergence limit (`limits.max_abs`) counts as exceeding every limit "
-        "state; failed runs are left out of the stripes.", "",
+        "* A run stopped by the scenario's divergence limit (`limits.max_abs`), or that collapsed (the OpenSees "
+        "unit did not converge), counts as exceeding every limit state; failed runs are left out of the stripes.",
+        "",
     ]
 
 
@@ -133,6 +134,23 @@ def _fits(spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> list[str]:
                           " ".join(f"{st.k}/{st.n}" for st in fit.stripes)])
     return [*lines, _table(["limit state", "strategy", "fit", "median [g]", "low", "high", "β",
                             "exceeded / runs per level"], table), ""]
+
+
+def _collapse(spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]]) -> list[str]:
+    """The collapse fragilities and their margin (FEMA P695's CMR when S_MT is given), if a limit state is one."""
+    margins = collapse_margins(fits, spec, rows)
+    if not margins:
+        return []
+    collapsed = sum(1 for r in rows if r["status"] == "collapsed")
+    lines = ["## Collapse", "",
+             f"A run collapses when a storey's peak drift ratio passes the limit state's threshold, or when the "
+             f"OpenSees building unit does not converge ({collapsed} runs here; they count as collapses at their "
+             "intensity, not as failures). S_CT is the median of the collapse fragility (maximum likelihood).",
+             "", f"* Margin: {margins[0]['margin_kind']}; reference {margins[0]['reference']:.4g} g "
+             f"({margins[0]['reference_source']}).", ""]
+    table = [[m["limit_state"], m["strategy"], m["fit"], m["s_ct"], m["s_ct_low"], m["s_ct_high"], m["beta"],
+              m["margin"]] for m in margins]
+    return [*lines, _table(["limit state", "strategy", "fit", "S_CT [g]", "low", "high", "β", "margin"], table), ""]
 
 
 def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]:
@@ -154,7 +172,8 @@ def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]
 
 def report_markdown(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]]) -> str:
     """The report's Markdown (figures referenced as files)."""
-    return "\n".join([*_settings(info, spec, rows), *_fits(spec, fits), *_runs_and_provenance(info, rows)])
+    return "\n".join([*_settings(info, spec, rows), *_fits(spec, fits), *_collapse(spec, rows, fits),
+                      *_runs_and_provenance(info, rows)])
 
 
 def _inline(text: str) -> str:

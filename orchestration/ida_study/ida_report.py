@@ -14,7 +14,13 @@ from typing import Any
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import IdaSpec
 from orchestration.ida_study.ida_figures import fragility_figure, ida_figure
-from orchestration.ida_study.ida_metrics import fragilities, fragility_rows, table_csv, write_tables
+from orchestration.ida_study.ida_metrics import (
+    collapse_margins,
+    fragilities,
+    fragility_rows,
+    table_csv,
+    write_tables,
+)
 from orchestration.ida_study.ida_records import IdaInfo
 from orchestration.ida_study.ida_rendering import report_html, report_markdown
 from orchestration.master.runfolder import write_text
@@ -38,5 +44,8 @@ def write_outputs(folder: Path, info: IdaInfo, rows: list[dict[str, Any]]) -> di
     fits = fragilities(rows, spec)
     table = fragility_rows(fits, spec)
     write_text(folder / "fragility.csv", table_csv(tuple(table[0]), table))
+    margins = collapse_margins(fits, spec, rows)
+    if margins:
+        write_text(folder / "collapse.csv", table_csv(tuple(margins[0]), margins))
     write_report(folder, info, spec, rows, fits)
     return fits

@@ -11,16 +11,18 @@ folder gets:
 |---|---|
 | ``results.parquet``, ``.csv`` | a row per run: record, component, intensity, strategy, peaks, indices, status, time |
 | ``fragility.csv`` | per limit state and strategy: stripes, the lognormal fit (median, beta, its interval) |
+| ``collapse.csv`` | with a ``collapse`` limit state: S_CT per strategy, its margin (FEMA P695's CMR with S_MT) |
 | ``figures/`` | ``ida_curves.png`` (per strategy), ``fragility.png`` (per limit state, strategies side by side) |
 | ``report.md``, ``report.html`` | settings, fits, a verdict per limit state, failed runs |
 | ``ida.json`` | configuration, suite, windows, period, intensities, provenance, batch pool |
 | ``records/`` | the windowed components the runs played (``time_s,accel_g``) |
 | ``jobs/`` | each finished run's result under its content key (``--resume``) |
 
-Exit codes: 0 every run ended (complete, or stopped by the scenario's divergence limit,
-which counts as exceeding every limit state); 1 some runs failed or were lost, or the
-study was interrupted (the report says which; the rest is complete); 2 configuration
-error, unreachable scheduler (nothing computed, nothing written).
+Exit codes: 0 every run ended (complete, or stopped by the scenario's divergence limit, or
+collapsed: the OpenSees building did not converge; both count as exceeding every limit
+state); 1 some runs failed or were lost, or the study was interrupted (the report says
+which; the rest is complete); 2 configuration error, unreachable scheduler (nothing
+computed, nothing written).
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ from typing import Any
 
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import file_bytes, job_key, plan_content
-from orchestration.batch.store import ResultStore
+from orchestration.batch.store import ResultStore, StoreError, check_folder, open_for_resume
+from orchestration.case_study.case_config import key_files
 from orchestration.ida_study import ida_jobs
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda, load_ida
 from orchestration.ida_study.ida_jobs import ida_job
@@ -92,7 +95,7 @@ def plan_runs(prepared: PreparedIda, store: ResultStore) -> tuple[list[PendingRu
                 label = run_label(c.rec.id, level, s)
                 scale = level / c.im
                 key = job_key("ida", {"job": label, "plan": plan_content(pp), "scale": scale,
-                                      "masses": prepared.masses}, ida_jobs.CODE_SOURCES)
+                                      "masses": prepared.masses, "storeys": prepared.storeys}, ida_jobs.CODE_SOURCES)
                 labels[key] = label
                 old = store.get(key)
                 if old is not None:
@@ -110,7 +113,7 @@ def payloads(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun]) 
     shared = {k: pool.share(pp, dedupe=False) for k, pp in plans.items()}
     return [{"plan": shared[(run.component.rec.id, run.strategy)],
              "files": {sha: files[sha] for sha in plans[(run.component.rec.id, run.strategy)].shas},
-             "scale": run.scale, "masses": prepared.masses} for run in pending]
+             "scale": run.scale, "masses": prepared.masses, "storeys": prepared.storeys} for run in pending]
 
 
 def compute(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun], labels: dict[str, str],
@@ -195,10 +198,19 @@ def regenerate(folder: Path) -> int:
     try:
         info = IdaInfo.from_json(json.loads((folder / "ida.json").read_text()))
         rows = read_rows(folder)
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        print(f"error: cannot read the study folder {folder}: {exc}", file=sys.stderr)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        print(f"error: cannot read the study folder {folder}: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
-    write_outputs(folder, info, rows)
+    try:
+        write_outputs(folder, info, rows)
+    except OSError as exc:
+        print(f"error: cannot write the report into {folder}: {exc.strerror or exc}"
+              f"{f' ({exc.filename})' if exc.filename else ''}", file=sys.stderr)
+        return 2
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:  # data edited by hand
+        print(f"error: the data of {folder} (ida.json, results) is not what ida.py wrote: {type(exc).__name__}: "
+              f"{exc}", file=sys.stderr)
+        return 2
     print(f"report regenerated: {folder / 'report.md'}")
     return 0
 
@@ -210,8 +222,9 @@ def load(args: argparse.Namespace) -> tuple[PreparedIda, IdaInfo | None]:
         try:
             resumed = IdaInfo.from_json(json.loads((args.resume / "ida.json").read_text()))
             study_file = Path(resumed.study_file)
-            loaded, problems, raw = LoadedIda(IdaSpec.model_validate(resumed.config), study_file), [], None
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+            loaded = LoadedIda(IdaSpec.model_validate(resumed.config), study_file, key_files(study_file))
+            problems, raw = [], None
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise ScenarioError(f"{args.resume} is not an IDA study folder that can be resumed: "
                                 f"{type(exc).__name__}: {exc}") from None
     else:
@@ -225,18 +238,25 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.report is not None:
         return regenerate(args.report)
-    prepared = None
+    prepared = claim = None
     try:
         prepared, resumed = load(args)
         spec = prepared.study.spec
+        if args.resume is not None:
+            _store, claim = open_for_resume(args.resume, "ida.json", "ida.py")
+        else:  # names and paths the file system cannot hold: exit 2 before any work
+            study = prepared.study
+            check_folder(spec.name, Path(spec.output), args.out, study.lines, study.path)
         if args.workers is not None and args.workers < 1:
             raise ScenarioError(Problem("--workers must be at least 1", "", "command line"))
         pool = BatchPool(scheduler_address(args.scheduler), args.workers or spec.workers,
                          max_worker_deaths=spec.max_worker_deaths, preload=(ida_jobs.__name__,))
         pool.start()
-    except (ScenarioError, BatchUnavailable) as exc:
+    except (ScenarioError, BatchUnavailable, StoreError) as exc:
         if prepared is not None:
             prepared.cleanup()
+        if claim is not None:
+            claim.unlink(missing_ok=True)
         print(exc.report() if isinstance(exc, ScenarioError) else f"error: {exc} (nothing computed)", file=sys.stderr)
         return 2
     try:
@@ -253,3 +273,5 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         pool.close()
         prepared.cleanup()
+        if claim is not None:
+            claim.unlink(missing_ok=True)

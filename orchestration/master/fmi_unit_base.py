@@ -14,7 +14,6 @@ failure. A subclass sets :attr:`FmiUnitBase.fmi_prefix` and :attr:`FmiUnitBase.s
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Callable, Sequence
 from ctypes import c_double, c_uint
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from orchestration.master.fmi_status import STATUS_LABELS, LogRecord, check_status
+from orchestration.master.fmu_loading import release
 from orchestration.master.value_buffer import ValueBuffer
 
 FATAL = 4  # fmi2Fatal / fmi3Fatal
@@ -109,7 +109,7 @@ class FmiUnitBase:
 
     def _remove_files(self) -> None:
         if self._dir is not None:
-            shutil.rmtree(self._dir, ignore_errors=True)
+            release(self._dir)
             self._dir = None
 
     def terminate(self) -> None:
@@ -124,7 +124,8 @@ class FmiUnitBase:
             self._instantiated = self._initialized = False
             self._forget_logger()
             self._abandoned = fmu  # keep the library loaded: its instance was never freed
-            self._remove_files()
+            release(self._dir, abandoned=True)
+            self._dir = None
             return
         try:
             if fmu is not None and self._instantiated:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import difflib
 import re
+import stat
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -25,7 +26,7 @@ from typing import Any
 from mre_common.env_settings import EnvSettingError, env_megabytes
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.binary_check import check_binary
-from orchestration.master.datapath import find_data_file
+from orchestration.master.datapath import file_kind, find_data_file
 from orchestration.master.errors import Problem, ScenarioError, SimulationError
 from orchestration.master.fmi2_cosim_unit import FmuUnit
 from orchestration.master.fmi3_cosim_unit import Fmu3Unit
@@ -202,7 +203,11 @@ class SystemPlan:
         then): any change is a failed run, so that ``manifest.json`` records the hash of what was read.
         """
         changed = []
-        for text, digest in self.input_hashes.items():
+        used = dict.fromkeys(str(p) for p in (*self.fmu_paths.values(), *self.data_files.values()))
+        for text in used:
+            if text not in self.input_hashes:
+                continue  # a path the plan was given after the checks (a batch worker's content-addressed copy)
+            digest = self.input_hashes[text]
             now = _hash(Path(text))
             if now != digest:
                 what = "is gone or unreadable" if now is None else f"changed (SHA-256 {digest} when checked, now {now})"
@@ -322,6 +327,11 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                 data_files[f"{name}.{pname}"] = found
                 hashes[str(found)] = _hash(found)
                 value = str(found)
+            elif isinstance(value, str) and value and desc is not None and hooks.data_kind is not None:
+                text = _plain_path_problem(value, hooks.data_kind(desc, pname), hooks)
+                if text is not None:
+                    problems.append(loaded.problem(text, "units", name, "parameters", pname))
+                    continue
             if desc is None:
                 continue
             var = desc.variables.get(pname)
@@ -470,7 +480,8 @@ def _domain_problems(loaded: LoadedScenario, name: str, desc: UnitDescription, p
         if pname in values:
             problems.append(loaded.problem(text, "units", name, "parameters", pname))
         else:
-            problems.append(loaded.problem(f"{pname} (declared start value): {text}", "units", name))
+            start = " (declared start value)" if pname in desc.variables else ""
+            problems.append(loaded.problem(f"{pname}{start}: {text}", "units", name))
     return problems
 
 
@@ -487,6 +498,26 @@ def _start_value(var: Variable) -> Any:
     except ValueError:
         return text
     return var.start
+
+
+def _plain_path_problem(value: str, kind: str | None, hooks: ResolveHooks) -> str | None:
+    """Why a plain string given to a variable that takes a data file of ``kind`` cannot be that file, or None.
+
+    The unit receives the text as it is (relative to the current folder); a ``!record`` or
+    ``!data`` tag searches the data path instead.
+    """
+    check = hooks.data_checks.get(kind) if kind is not None else None
+    if check is None:
+        return None
+    path = Path(value).absolute()  # the unit opens it from the current folder
+    hint = f"(a plain string goes to the unit as it is; write !{kind} {value} to search the data path)"
+    try:
+        info = path.stat()  # never opens it: a FIFO does not block
+    except (OSError, ValueError):
+        return f"{kind} file {value!r} not found: no {path} {hint}"
+    if not stat.S_ISREG(info.st_mode):
+        return f"{kind} file {value!r}: {path} is {file_kind(info.st_mode)}, not a regular file"
+    return check(path)
 
 
 def _bounds_problem(var: Variable, value: Any) -> str | None:

@@ -78,6 +78,10 @@ class _Budget:
         self.open: set[int] = set()
 
 
+YAML_BOOLEANS = ("true", "false", "True", "False", "TRUE", "FALSE")
+"""The booleans of YAML 1.2; PyYAML's 1.1 resolver also reads yes/no/on/off/y/n as booleans, which are refused."""
+
+
 def _construct(node: yaml.Node, path: KeyPath, lines: Lines, file: str, problems: list[Problem],
                budget: _Budget | None = None) -> Any:
     budget = budget if budget is not None else _Budget()
@@ -102,6 +106,10 @@ def _construct(node: yaml.Node, path: KeyPath, lines: Lines, file: str, problems
         return DataFile(str(node.value), node.tag[1:])
     if node.tag.startswith("!"):
         problems.append(Problem(f"unknown tag {node.tag} (known: !data, !record)", _dotted(path), file, line))
+        return None
+    if node.tag == "tag:yaml.org,2002:bool" and node.value not in YAML_BOOLEANS:
+        problems.append(Problem(f"{node.value!r} is a YAML 1.1 boolean: write true or false (or quote it for "
+                                "text)", _dotted(path), file, line))
         return None
     loader = yaml.SafeLoader("")
     try:

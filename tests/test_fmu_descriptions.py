@@ -1,20 +1,56 @@
-"""Every unit string our FMUs declare is what the FMU table of docs/fmu_variables.md says, and a valid SI unit.
+"""What each FMU declares: a valid model description, SI units as docs/fmu_variables.md gives them, its runtime needs.
 
-The "FMU variables" table of docs/fmu_variables.md is read as written (m/s², N·s/m, A·s^½/m^½, "–" for
-none) and turned into FMI unit syntax; each declared ``Unit`` is parsed here into SI base
-exponents (N = kg·m·s⁻²) and compared with the ``BaseUnit`` the modelDescription gives
-(none may be given only where a power is fractional).
+* Every FMU the project builds passes fmpy's validation; one that declares a variable twice is
+  a scenario error (exit 2) quoting fmpy's reason, before anything runs.
+* Every unit string is what the "FMU variables" table of docs/fmu_variables.md says, read as
+  written (m/s², N·s/m, A·s^½/m^½, "–" for none) and turned into FMI unit syntax, and a valid
+  SI unit: each declared ``Unit`` is parsed here into SI base exponents (N = kg·m·s⁻²) and
+  compared with the ``BaseUnit`` the modelDescription gives (none may be given only where a
+  power is fractional).
+* The pythonfmu units carry their runtime requirements, documentation and FMU-state support.
 """
 
 from __future__ import annotations
 
 import re
+import zipfile
 from fractions import Fraction
 
 import pytest
 from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from components.build.pythonfmu_units import discover
+from orchestration.api import ScenarioError, load_scenario
 
 from .conftest import PROJECT
+
+FMU_NAMES = [source.fmu_name.removesuffix(".fmu") for source in discover()] + ["MreIsolatorC"]
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_fmu_is_valid(fmu_dir, name):
+    """Every FMU the project builds passes fmpy's validation with zero problems."""
+    assert validate_fmu(str(fmu_dir / f"{name}.fmu")) == []
+
+
+def test_sosm_gain_units_are_declared_with_their_fractional_powers(fmu_dir):
+    """theta [m^0.5 s^-1.5] and zeta [A s^0.5 m^-0.5]: declared by name only (no integer base-unit exponents)."""
+    md = read_model_description(str(fmu_dir / "SosmCurrentController.fmu"))
+    units = {v.name: v.unit for v in md.modelVariables}
+    assert units["theta"] == "m0.5/s1.5" and units["zeta"] == "A.s0.5/m0.5"
+    declared = {u.name: u for u in md.unitDefinitions}
+    assert declared["m0.5/s1.5"].baseUnit is None and declared["A.s0.5/m0.5"].baseUnit is None
+
+
+@pytest.mark.parametrize("name", [s.fmu_name.removesuffix(".fmu") for s in discover() if s.handles_state])
+def test_fmu_ships_its_runtime_requirements(fmu_dir, name):
+    with zipfile.ZipFile(fmu_dir / f"{name}.fmu") as z:
+        text = z.read("resources/requirements.txt").decode()
+        assert "Python >= 3.11" in text
+        assert "documentation/index.html" in z.namelist()
+        assert 'canGetAndSetFMUstate="true"' in z.read("modelDescription.xml").decode()
+
 
 DERIVED = {"N": {"kg": 1, "m": 1, "s": -2}}
 BASE = {"kg", "m", "s", "A", "K", "mol", "cd"}
@@ -39,7 +75,7 @@ def si_exponents(unit: str) -> dict[str, Fraction]:
     return {k: v for k, v in out.items() if v != 0}
 
 
-def readme_units() -> dict[str, dict[str, str | None]]:
+def table_units() -> dict[str, dict[str, str | None]]:
     """FMU -> variable name pattern -> unit in FMI syntax (None: no unit), from the table of docs/fmu_variables.md."""
     text = (PROJECT / "docs" / "fmu_variables.md").read_text()
     table = text[text.index("## FMU variables"):]
@@ -93,13 +129,13 @@ def test_declared_units_are_si_and_match_their_base_units(fmu_dir, name):
 
 
 @pytest.mark.parametrize("name", FMUS)
-def test_declared_units_are_the_readme_units(fmu_dir, name):
-    readme = readme_units()
+def test_declared_units_are_the_documented_units(fmu_dir, name):
+    table = table_units()
     units, _ = _declared(fmu_dir, name)
     if name == "MreIsolatorC":  # the table: "as MreIsolator"
         assert units == _declared(fmu_dir, "MreIsolator")[0]
         return
-    rows = readme[name]
+    rows = table[name]
     checked = set()
     for pattern, unit in rows.items():
         matching = [v for v in units if re.fullmatch(pattern, v)]
@@ -117,3 +153,28 @@ def test_declared_units_are_the_readme_units(fmu_dir, name):
         unchecked -= {"k_0", "k_1", "c_0", "c_1", "alpha_0", "alpha_1", "beta_0", "beta_1", "gamma_0", "gamma_1",
                       "delta", "n", "F0", "y"}  # y: the internal hysteretic state, not in the table
     assert not unchecked, f"{name}: units the table does not give: {sorted(unchecked)}"
+
+
+def _with_duplicate_variable(src, dest) -> None:
+    """Copy an FMU, declaring its parameter ``current`` a second time under another value reference."""
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dest, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = data.decode()
+                m = re.search(r'<ScalarVariable\s+name="current".*?</ScalarVariable>', xml, re.S)
+                duplicate = re.sub(r'valueReference="\d+"', 'valueReference="999"', m.group(0))
+                xml = xml.replace("</ModelVariables>", duplicate + "\n</ModelVariables>")
+                data = xml.encode()
+            zout.writestr(item, data)
+
+
+def test_an_fmu_declaring_a_variable_twice_is_refused_with_fmpys_reason(tmp_path, fmu_dir):
+    # fmpy's own validation rejects this FMU; before, the master bound one of the two and ran.
+    bad = tmp_path / "ConstantCurrent.fmu"
+    _with_duplicate_variable(fmu_dir / "ConstantCurrent.fmu", bad)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(PROJECT / "scenarios" / "elcentro_constant_current.yaml", [f"units.controller.fmu={bad}"])
+    [problem] = info.value.problems
+    assert problem.key == "units.controller.fmu"
+    assert "invalid modelDescription.xml" in problem.message and "current" in problem.message
