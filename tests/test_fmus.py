@@ -259,6 +259,52 @@ def test_all_fmus_together_in_one_process(fmu_dir, elcentro):
             unit.close()
 
 
+def _every_fmu_run(fmu_dir: Path, names: list[str], together: bool, steps: int = 120, h: float = 0.01):
+    """Outputs of each FMU of test_init_mode_all.UNITS driven by its signal, alone one after another or all at once."""
+    from .test_init_mode_all import UNITS
+
+    record = str(PROJECT / "scenarios" / "records" / "elcentro_1940_ns.csv")
+
+    def start(name: str) -> Driven:
+        spec = UNITS[name]
+        params = {**spec["values"], **{k: record if v == "ELCENTRO" else v for k, v in spec["required"].items()}}
+        return Driven(fmu_dir / f"{name}.fmu", name, params)
+
+    rows: dict[str, list[list[float]]] = {n: [] for n in names}
+    groups = [names] if together else [[n] for n in names]
+    for group in groups:
+        units = {n: start(n) for n in group}
+        try:
+            for k in range(steps):
+                t = k * h
+                for n, unit in units.items():  # interleaved: every unit steps once per communication point
+                    signal = UNITS[n]["signal"]
+                    if signal:
+                        unit.set(**{v: a * math.sin(w * t) + c for v, (a, w, c) in signal.items()})
+                    unit.step(t, h)
+                    rows[n].append(unit.get(*unit.outputs()))
+        finally:
+            for unit in units.values():
+                unit.close()
+    return rows
+
+
+@pytest.mark.slow
+def test_every_fmu_together_in_one_process_steps_as_it_does_alone(fmu_dir):
+    """All our FMUs at once in one interpreter (pythonfmu FMUs share it): each gives exactly its outputs alone.
+
+    OpenSeesBuilding is left out: OpenSees keeps one model per process, so it refuses a second instance.
+    """
+    names = sorted(p.stem for p in fmu_dir.glob("*.fmu") if p.stem != "OpenSeesBuilding")
+    assert {"ClippedOptimalCurrentController", "LyapunovCurrentController", "FrequencyCurrentController",
+            "BoucWenIsolator", "MreIsolatorC"} <= set(names)
+    alone = _every_fmu_run(fmu_dir, names, together=False)
+    together = _every_fmu_run(fmu_dir, names, together=True)
+    for name in names:
+        assert np.all(np.isfinite(alone[name])), name
+        assert together[name] == alone[name], name
+
+
 @pytest.mark.parametrize("name", ["ShearBuilding", "SosmCurrentController", "MreIsolator"])
 def test_same_inputs_give_the_same_outputs(fmu_dir, name):
     """Two instances fed the same inputs agree exactly: no state leaks through the shared interpreter."""

@@ -322,9 +322,11 @@ def test_a_model_exchange_unit_with_a_co_simulation_unit_in_the_master(fmus, tmp
 
 
 def test_executor_native_refuses_a_model_exchange_unit(fmus, tmp_path):
+    """Known before the first step, so a scenario error (exit 2, nothing written), not a failed run."""
     path = write_scenario(tmp_path, f"  osc:\n    fmu: {fmus['Oscillator']}\n", simulation=", executor: native")
-    outcome = run_plan(plan_scenario(path), tmp_path / "run", plots=False)
-    assert outcome.result.status == "failed" and "native executor cannot run this system" in str(outcome.result.error)
+    with pytest.raises(ScenarioError, match=r"native: unit\(s\) osc are not FMI 2\.0 co-simulation FMUs"):
+        plan_scenario(path)
+    assert not (tmp_path / "run").exists()
 
 
 # -- what is refused ------------------------------------------------------------------------------------------

@@ -316,10 +316,11 @@ def build(source: FmuSource, dest: Path) -> Path:
         if source.once_per_process:
             options["canBeInstantiatedOnlyOncePerProcess"] = True
         sys.path.insert(0, str(CORES_DIR))
-        # The shell and its cores as they are in components/, not as an FMU instantiated earlier in this process
-        # loaded them (pythonfmu FMUs share the host's interpreter): those are set aside and put back afterwards.
-        shadowed = {m: sys.modules.pop(m) for m in (script.stem, *source.core_modules) if m in sys.modules
-                    and Path(getattr(sys.modules[m], "__file__", "") or "").resolve() not in (script.resolve(), *cores)}
+        # The shell and its cores imported afresh, as they are in components/: a copy loaded earlier in this process
+        # (by an FMU instantiated here, pythonfmu FMUs share the host's interpreter, or by a test importing the
+        # shell while another pythonfmu was sys.modules["pythonfmu"]) may subclass another Fmi2Slave than the
+        # builder's. Those are set aside and put back afterwards.
+        shadowed = {m: sys.modules.pop(m) for m in (script.stem, *source.core_modules) if m in sys.modules}
         try:
             raw = FmuBuilder.build_FMU(script, dest=tmp / "raw.fmu", project_files=[*cores, requirements],
                                        documentation_folder=docs, **options)

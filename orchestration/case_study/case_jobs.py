@@ -23,7 +23,8 @@ OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
                                                        "ground.ag")) + "]")
 # The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key).
-CODE_SOURCES = ("components/physics", "orchestration/case_study/case_jobs.py", "orchestration/case_study/analysis.py")
+CODE_SOURCES = ("components/physics", "orchestration/case_study/case_jobs.py", "orchestration/case_study/analysis.py",
+                "orchestration/case_study/tuning.py")  # tuning.py: system_setup and sweep_currents decide the numbers
 
 
 def cosim_job(payload: dict[str, Any]) -> dict[str, Any]:

@@ -155,6 +155,8 @@ def _settings(scenario: Scenario) -> dict[str, Any]:
         return value
 
     settings = compact(scenario.model_dump(mode="json", exclude={"name", "units", "connections"}))
+    if scenario.report is not None:  # only what the scenario set: an application's defaults are its own to fill in
+        settings["report"] = compact(scenario.report.model_dump(mode="json", exclude_unset=True))
     for key in ("start_time", "stop_time"):  # in DefaultExperiment
         settings["simulation"].pop(key)
     return {"format": 1, **settings}

@@ -11,6 +11,7 @@ import logging
 import platform
 import sys
 import time
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -21,7 +22,7 @@ from orchestration.master.execution import ExecutionResult, StopRequest, execute
 from orchestration.master.fmi_status import UNIT_LOGGER, LogRecord
 from orchestration.master.monitor import Monitor
 from orchestration.master.recorder import Recorder, RowStorage, column_kind, write_timeseries
-from orchestration.master.report import PlotProcess, RunDescription, caption, plot, report_summary
+from orchestration.master.report import PlotFailed, PlotProcess, RunDescription, caption, plot, report_summary
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import (
     new_run_folder,
@@ -92,6 +93,17 @@ def describe_run(plan: SystemPlan) -> RunDescription:
         values[unit] = declared | plan.parameters.get(unit, {})
     names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
     return RunDescription(values, names, dict(plan.report.labels))
+
+
+def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: RunDescription) -> None:
+    """The figures drawn in this process; a failure costs the figures only, said as a plot process says it."""
+    try:
+        plot(recorder, plan.report, plan.report_hook, folder, plan.loaded.scenario.name, described)
+    except OSError:
+        raise
+    except Exception as exc:  # a bug in the application's figures: the run keeps its other results
+        last = traceback.format_exception_only(exc)[-1].strip()
+        raise PlotFailed(f"the figures could not be drawn ({last})") from exc
 
 
 def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription) -> tuple[RowStorage | None,
@@ -203,7 +215,7 @@ def run_plan(
                                                     recorder.data[: recorder.count], recorder.kinds,
                                                     recorder.strings))
     if plots and plotter is None and recorder.count > 1:
-        save("plots (*.png)", lambda: plot(recorder, plan.report, plan.report_hook, folder, sc.name, described))
+        save("plots (*.png)", lambda: _plot_inline(recorder, plan, folder, described))
     run = run_id(folder)
     summary: dict[str, Any] = {
         "scenario": sc.name,
