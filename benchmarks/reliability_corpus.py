@@ -1355,8 +1355,11 @@ def run_case(case: Case, base: Path, index: int) -> Result:
         with _MOUNT_LOCK:
             _mount(mounted, case.mount, case.mount_size)
     elif case.mount == "fsize":
+        limit = _bytes(case.mount_size)
+
         def preexec() -> None:
-            resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write beyond the limit fails with EFBIG
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
     before = _snapshot(work)
     precious = {k: v for k, v in before.items() if v[2] and (k == PRECIOUS or k.startswith(("prev", "runs")))}
     env = {**os.environ, "TMPDIR": str(tmp), "MRE_COSIM_CRASH_DIR": str(crash), "PYTHONDONTWRITEBYTECODE": "1",
@@ -1481,6 +1484,186 @@ def new_unit_cases() -> list[Case]:
     return cases
 
 
+# -- issue 26, what was left: unused values, unlisted strategies, NUL in text, full disks, stuck workers ------------
+
+LEFT = "26/leftovers"
+"""Prefix of these classes: ``--only 26/leftovers`` runs them alone."""
+
+
+def _bytes(size: str) -> int:
+    """``512``, ``4K``, ``1M`` as bytes."""
+    scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(size[-1:].upper(), 1)
+    return int(size[:-1] if scale > 1 else size) * scale
+
+
+def _exit(want: int) -> Callable[[Path, list[int], str], list[str]]:
+    return lambda w, c, e: [] if c == [want] else [f"exit {c}, expected {want}"]
+
+
+def _said_what_exists(work: Path, codes: list[int], err: str) -> list[str]:
+    """'marked incomplete' only when a file of the folder says so; 'NOT marked' names every file the folder holds."""
+    reasons = _marked_if_said(work, codes, err)
+    folder = work / "out" / "run"
+    if "NOT marked incomplete" in err and folder.is_dir():
+        unnamed = [p.name for p in folder.iterdir() if p.is_file() and f"{p.name} ({p.stat().st_size} B)" not in err]
+        reasons += [f"says NOT marked but does not name {unnamed}"] if unnamed else []
+    return reasons
+
+
+_STUCK: dict[str, Any] = {}
+_STUCK_LOCK = threading.Lock()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def _stuck_cluster(port: int) -> Callable[[Path], None]:
+    """Setup: a real Dask scheduler on ``port`` whose only worker is stopped (SIGSTOP) once it has registered, so
+    it never answers; started once, on first use, and ended with the corpus."""
+    def setup(work: Path) -> None:
+        with _STUCK_LOCK:
+            if _STUCK:
+                return
+            import atexit
+
+            dask = str(Path(PY).parent / "dask")
+            log = open(work.parent / "dask.log", "w")  # kept open while the cluster lives
+            address = f"tcp://127.0.0.1:{port}"
+            procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                       "--dashboard-address", ":0"], stdout=log, stderr=log, cwd=work.parent)]
+            procs.append(subprocess.Popen([dask, "worker", address, "--no-nanny", "--nthreads", "1"], stdout=log,
+                                          stderr=log, cwd=PROJECT))
+
+            def end() -> None:
+                for proc in procs:
+                    if proc.poll() is None:
+                        os.kill(proc.pid, signal.SIGCONT)
+                        proc.kill()
+                        proc.wait()
+            atexit.register(end)
+            from distributed import Client
+
+            with Client(address, timeout="120s") as client:
+                client.wait_for_workers(1, timeout=300)
+            os.kill(procs[1].pid, signal.SIGSTOP)
+            _STUCK["procs"] = procs
+    return setup
+
+
+def leftover_cases(base: Path) -> list[Case]:
+    """Issue 26, what was left: values set but unused by the chosen law, strategies defined but not listed, a NUL in
+    any text, writes that fail (RLIMIT_FSIZE, tmpfs), a scheduler whose worker never answers."""
+    out: list[Case] = []
+    # values the chosen law does not use: checked for their domain, refused when set
+    unused = {"building.n_1=3": "set but unused", "building.n_1=0": "must be >= 1", "building.n_2=.nan": "finite",
+              "building.fy_1=4000": "set but unused", "building.fy_2=-1": "finite number > 0",
+              "building.b_1=0.1": "set but unused", "building.b_3=1.5": "[0, 1)", "building.bw_beta=2": "unused",
+              "building.bw_gamma=5": "|gamma| <= beta", "building.substeps=0": "[1, 1000]",
+              "building.h_1=3": "set but unused", "building.h_2=-1": "must be > 0", "building.h_3=.inf": "finite",
+              "isolator.k_stop=1e6": "set but unused", "isolator.c_stop=100": "set but unused",
+              "isolator.k_stop=-1": "must not be negative"}
+    for setting, word in unused.items():
+        out.append(Case(f"{LEFT}: unused values", f"linear building: {setting}", "run.py", _elc(setting),
+                        verify=_says(setting.split("=")[0].split(".")[1], word)))
+    for sets, word in ((("building.hysteresis=bilinear", "building.n_2=3"), "set but unused"),
+                       (("building.hysteresis=bilinear", "building.bw_gamma=0.1"), "set but unused"),
+                       (("isolator.beyond_range=tangent", "isolator.c_stop=-5"), "must not be negative"),
+                       (("isolator.beyond_range=tangent", "isolator.k_stop=1"), "set but unused")):
+        out.append(Case(f"{LEFT}: unused values", " ".join(sets), "run.py", _elc(*sets),
+                        verify=_says(sets[1].split("=")[0].split(".")[1], word)))
+    for sets in (("building.hysteresis=bouc-wen", "building.n_1=3"), ("building.p_delta=true", "building.h_1=3",
+                                                                     "building.h_2=3", "building.h_3=3"),
+                 ("isolator.beyond_range=stop", "isolator.k_stop=1e6"), ("building.n_1=2", "isolator.k_stop=5e6")):
+        out.append(Case(f"{LEFT}: unused values", f"used or the declared start: {' '.join(sets)}"[:70], "run.py",
+                        _elc(*sets), verify=_exit(0)))
+    out.append(Case(f"{LEFT}: unused values", "kobe_yielding switched back to linear runs", "run.py",
+                    [str(SC / "kobe_yielding.yaml"), "--set", SHORT, "--set", "building.hysteresis=linear", "--out",
+                     "out", "--quiet", "--no-plots"], verify=_exit(0)))
+    out.append(Case(f"{LEFT}: unused values", "n_2: 3 in a scenario file names its line", "run.py",
+                    ["s.yaml", "--out", "out", "--quiet", "--no-plots"],
+                    lambda d: (d / "s.yaml").write_text(f"extends: {SC / 'elcentro.yaml'}\nname: s\nunits:\n"
+                                                        "  building:\n    parameters:\n      n_2: 3.0\n"),
+                    verify=_says("s.yaml:6", "n_2")))
+    # strategies a study defines: every number finite and no NUL, listed or not
+    study = str(SC / "case_study.yaml")
+    definitions = {"current: .nan": "{x: {parameters: {current: .nan}}}",
+                   "i_passive: .inf": "{x: {parameters: {mode: passive, i_passive: .inf}}}",
+                   "lambda: -.inf": "{x: {parameters: {lambda: -.inf}}}",
+                   "a list with .nan": "{x: {parameters: {gains: [1, .nan]}}}",
+                   "a nested .nan": "{x: {parameters: {a: {b: .nan}}}}",
+                   "a NUL in a value": '{x: {parameters: {mode: "passive\\0"}}}',
+                   "a NUL in the FMU": '{x: {fmu: "a\\0.fmu"}}'}
+    for name, definition in definitions.items():
+        word = "NUL" if "NUL" in name else "finite"
+        out.append(Case(f"{LEFT}: unlisted strategies", f"study.py, {name}", "study.py",
+                        [study, "--set", f"strategy_definitions={definition}", "--out", "out", "--quiet"],
+                        verify=_says(word, "strategy_definitions.x")))
+    for name in ("current: .nan", "a NUL in a value"):
+        out.append(Case(f"{LEFT}: unlisted strategies", f"ida.py, {name}", "ida.py",
+                        ["ida.yaml", "--set", f"strategy_definitions={definitions[name]}", "--out", "out", "--quiet"],
+                        _mini_ida_file, verify=_says("strategy_definitions.x")))
+    out.append(Case(f"{LEFT}: unlisted strategies", "study.py, a strategy file with .nan", "study.py",
+                    ["s.yaml", "--out", "out", "--quiet"],
+                    lambda d: ((d / "mine.yaml").write_text("strategies:\n  calm:\n    parameters:\n"
+                                                            "      i_passive: .nan\n"),
+                               (d / "s.yaml").write_text(f"extends: {study}\nstrategy_files: [mine.yaml]\n")),
+                    verify=_says("mine.yaml:4", "finite")))
+    out.append(Case(f"{LEFT}: unlisted strategies", "study.py, a finite unlisted strategy runs", "study.py",
+                    [study, *MINI_STUDY, "--set", "strategy_definitions={x: {parameters: {i_passive: 1.5}}}",
+                     "--workers", "1", "--out", "out", "--quiet"], timeout=600, verify=_exit(0)))
+    # a NUL in any text of a scenario: never cut short, never an OS error
+    texts = {"a choice String": ("units: {controller: {parameters: {mode: \"passive\\0x\"}}}", "NUL"),
+             "hysteresis": ("units: {building: {parameters: {hysteresis: \"linear\\0\"}}}", "NUL"),
+             "beyond_range": ("units: {isolator: {parameters: {beyond_range: \"stop\\0\"}}}", "NUL"),
+             "the FMU path": (f"units: {{isolator: {{fmu: \"{FMUS / 'MreIsolator.fmu'}\\0\"}}}}", "NUL"),
+             "a plain record path": ("units: {ground: {parameters: {record: \"r.csv\\0\"}}}", "r.csv"),
+             "a !record path": ("units: {ground: {parameters: {record: !record \"r.csv\\0\"}}}", "r.csv"),
+             "a !data path": ("units: {ground: {parameters: {record: !data \"r.csv\\0\"}}}", "r.csv"),
+             "the name": ("name: \"a\\0b\"", "name"), "results.dir": ("results: {dir: \"r\\0\"}", "results.dir"),
+             "an output": ("outputs: [\"building.x_1\\0\"]", "outputs"),
+             "a connection": ("connections: [\"ground.ag\\0 -> building.ag\"]", "connections"),
+             "a unit name": ("units: {\"iso\\0\": {fmu: ../fmus/MreIsolator.fmu}}", "unit name"),
+             "a limit's key": ("limits: {\"building.x_1\\0\": 0.1}", "limits")}
+    for name, (body, word) in texts.items():
+        text = f"extends: {SC / 'elcentro.yaml'}\nsimulation: {{stop_time: 0.05}}\n{body}\n"
+        out.append(Case(f"{LEFT}: NUL in text", name, "run.py", ["s.yaml", "--out", "out", "--quiet", "--no-plots"],
+                        lambda d, text=text: (shutil.copy(RECORDS / "elcentro_1940_ns.csv", d / "r.csv"),
+                                              (d / "s.yaml").write_text(text)), verify=_says(word)))
+    out.append(Case(f"{LEFT}: NUL in text", "the description (text only: runs)", "run.py",
+                    ["s.yaml", "--out", "out", "--quiet", "--no-plots"],
+                    lambda d: (d / "s.yaml").write_text(f"extends: {SC / 'elcentro.yaml'}\n"
+                                                        "simulation: {stop_time: 0.05}\ndescription: \"a\\0b\"\n"),
+                    verify=_exit(0)))
+    # writes that fail: the kernel's EFBIG (RLIMIT_FSIZE, any user) and a full tmpfs (root)
+    kobe5 = [str(SC / "kobe.yaml"), "--set", "simulation.stop_time=5", "--out", "out/run", "--quiet", "--no-plots"]
+    for size in ("512", "2K", "4K", "16K", "64K", "1M", "4M"):
+        out.append(Case(f"{LEFT}: full disk", f"every file at most {size} B (EFBIG)", "run.py", kobe5,
+                        lambda d: (d / "out").mkdir(), mount="fsize", mount_size=size, verify=_said_what_exists))
+    if IS_ROOT:
+        for size in ("8K", "32K", "256K", "2M"):
+            out.append(Case(f"{LEFT}: full disk", f"Kobe 5 s on a {size} disk (ENOSPC)", "run.py", kobe5,
+                            mount="full", mount_size=size, verify=_said_what_exists))
+        for size in ("64K", "1M"):
+            out.append(Case(f"{LEFT}: full disk", f"study on a {size} disk", "study.py",
+                            [study, *MINI_STUDY, "--workers", "1", "--out", "out/s", "--quiet"], mount="full",
+                            mount_size=size, timeout=600))
+    # a scheduler whose worker registered and then never answers: bounded, exit 2 naming the address and the bound
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    for tool, argv, where in (("study.py", [study, "--scheduler", address, "--out", "out", "--quiet"], "out"),
+                              ("tune.py", [study, "--scheduler", address, "--out", "g.yaml", "--quiet"], "g.yaml")):
+        out.append(Case(f"{LEFT}: stuck workers", f"{tool} at a scheduler whose worker is stopped", tool, argv,
+                        _stuck_cluster(port), out=where, timeout=400,
+                        verify=lambda w, c, e: ([] if c == [2] else [f"exit {c}, expected 2"])
+                        + _says(address, "within 120 s")(w, c, e)))
+    return out
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -1491,7 +1674,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     _PACKAGE_LONG = export_ssp(plan_scenario(SC / "kobe.yaml"), base / "kobe.ssp")
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
-            *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases()]
+            *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *leftover_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:
@@ -1535,6 +1718,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jsonl", type=Path, default=None, help="also write every case's outcome here (JSON lines)")
     parser.add_argument("--keep", action="store_true", help="keep the case folders")
     args = parser.parse_args(argv)
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # started in the background (`&`, nohup): the cases'
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # tools would inherit an ignored Ctrl-C
     subprocess.run([PY, "-m", "components.build"], check=True, stdout=subprocess.DEVNULL)  # no build races later
     base = Path(tempfile.mkdtemp(prefix="mre-corpus-"))
     started = time.monotonic()

@@ -32,3 +32,13 @@ def env_megabytes(name: str, default_mb: float | None, *, zero_ok: bool = False)
     if value * 2**20 > 2**62:
         raise EnvSettingError(f"environment variable {name}={text!r}: more than 2^62 bytes")
     return int(value * 2**20)
+
+
+def env_switch(name: str, default: bool) -> bool:
+    """An on/off switch ``$name``: ``1`` on, ``0`` off, unset or empty ``default``; anything else is refused."""
+    text = os.environ.get(name, "").strip()
+    if not text:
+        return default
+    if text not in ("0", "1"):
+        raise EnvSettingError(f"environment variable {name}={text!r}: give 1 (on) or 0 (off)")
+    return text == "1"

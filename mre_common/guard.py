@@ -143,6 +143,13 @@ def guarded(
             return EXIT_USAGE
         if not isinstance(exc, Exception):
             raise  # GeneratorExit and other interpreter-level signals
+        import errno  # built in, like _signal
+
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):  # the disk, not a bug
+            where = f" {exc.filename}" if exc.filename else " its output"
+            _print(f"{prog}: could not write{where}: {exc.strerror or exc}; the output is incomplete (every file "
+                   "written before is whole and kept, the one being written is not; free space and run again)")
+            return EXIT_FAILED
         log = crash_log(prog, exc, argv)
         if log is not None:
             where = f"traceback in {log}"

@@ -162,6 +162,7 @@ def test_the_cycle_check_catches_a_cycle():
 def test_shells_import_only_their_own_physics_cores(shell):
     tree = ast.parse((PROJECT / "components" / "shells" / shell).read_text())
     cores = {p.stem for p in (PROJECT / "components" / "physics").glob("*.py")}
+    cores |= {p.stem for p in (PROJECT / "components" / "shells").glob("*.py") if not p.stem.endswith("_fmu")}
     declared: set[str] = set()
     bare: set[str] = set()
     for node in ast.walk(tree):

@@ -281,6 +281,57 @@ def test_a_diverging_estimator_is_a_unit_error_at_its_time(fmu_dir, tmp_path, na
         in done.stdout, done.stdout
 
 
+def test_the_controllers_raise_when_their_estimate_diverges_after_a_normal_start():
+    """The core's side of a diverging estimator: finite steps, then a measurement that overflows the update."""
+    for ctrl in (ClippedOptimalController(), LyapunovController()):
+        acc = np.zeros(4)
+        for _ in range(5):
+            assert math.isfinite(ctrl.update(1e-3, 1e-2, acc, 20.0, 1e-3))
+        with pytest.raises(EstimatorDiverged, match="not finite"):
+            ctrl.update(1e308, 0.0, acc, 0.0, 1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _CONTROLLERS[:2])
+def test_a_diverging_estimator_later_in_a_run_is_a_unit_error_naming_that_time(fmu_dir, name, capfd):
+    """Five good steps, then a displacement that makes the estimate overflow at t = 5 ms: the step fails with
+    fmi2Error, the log names the unit and that time, and the unit stays failed (its current is NaN)."""
+    from fmpy.fmi1 import FMICallException
+
+    from .fmu_driver import Driven
+
+    unit = Driven(fmu_dir / f"{name}.fmu", "diverge")
+    try:
+        h = 1e-3
+        for k in range(5):
+            unit.set(x=1e-3, v=1e-2, F=20.0)
+            unit.step(k * h, h)
+        assert math.isfinite(unit.get("i")[0])
+        unit.set(x=1e308)
+        with pytest.raises(FMICallException):
+            unit.step(5 * h, h)
+        out = capfd.readouterr().out
+        assert f"{name}: the state estimate is not finite (the Kalman filter diverged) at t = 0.005 s" in out, out
+        assert math.isnan(unit.get("i")[0])
+        unit.set(x=0.0)
+        with pytest.raises(FMICallException):  # failed for good: no silently wrong continuation
+            unit.step(6 * h, h)
+    finally:
+        unit.close(terminate=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", _CONTROLLERS)
+def test_each_controller_fmu_carries_the_shared_modules_as_they_are_in_the_tree(fmu_dir, name):
+    """lqg_plant_core (physics) and model_based_shell (shell glue) travel in every model-based controller FMU,
+    byte for byte as in components/: pythonfmu FMUs share one interpreter, so all copies must agree."""
+    import zipfile
+
+    with zipfile.ZipFile(fmu_dir / f"{name}.fmu") as fmu:
+        for path in ("components/physics/lqg_plant_core.py", "components/shells/model_based_shell.py"):
+            assert fmu.read(f"resources/{Path(path).name}") == (PROJECT / path).read_bytes(), path
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", _CONTROLLERS)
 def test_the_fmu_declares_si_units_and_runs_with_defaults(fmu_dir, tmp_path, name):

@@ -6,14 +6,14 @@ import zipfile
 
 import pytest
 
-from mre_common.env_settings import EnvSettingError, env_megabytes
+from mre_common.env_settings import EnvSettingError, env_megabytes, env_switch
 from orchestration import run as run_tool
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master import safe_archive
 from orchestration.master.errors import ScenarioError
 from orchestration.master.recorder import SPILL_ENV, spill_threshold
 from orchestration.master.resolve import ENGINE_SETTINGS, environment_problems
-from orchestration.master.scenario import MEMORY_ENV, SimulationSpec, result_size_problem
+from orchestration.master.scenario import CSV_PROCESS_ENV, MEMORY_ENV, SimulationSpec, result_size_problem
 
 from .conftest import PROJECT
 
@@ -101,3 +101,21 @@ def test_run_py_exits_2_and_writes_nothing(monkeypatch, tmp_path, capsys):
                           "--out", str(out), "--quiet", "--no-plots"])
     assert code == 2 and not out.exists()
     assert f"environment variable {SPILL_ENV}='-3'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["yes", "true", "2", "-1", "nan", "on"])
+def test_an_on_off_switch_takes_only_0_or_1(monkeypatch, tmp_path, capsys, text):
+    monkeypatch.setenv(CSV_PROCESS_ENV, text)
+    with pytest.raises(EnvSettingError, match=CSV_PROCESS_ENV):
+        env_switch(CSV_PROCESS_ENV, True)
+    out = tmp_path / "out"
+    code = run_tool.main([str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", "simulation.stop_time=0.05",
+                          "--out", str(out), "--quiet", "--no-plots"])
+    assert code == 2 and not out.exists()
+    assert f"environment variable {CSV_PROCESS_ENV}={text!r}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("text", "expected"), [("", True), (" 1 ", True), ("0", False)])
+def test_an_on_off_switch_reads_0_and_1(monkeypatch, text, expected):
+    monkeypatch.setenv(CSV_PROCESS_ENV, text)
+    assert env_switch(CSV_PROCESS_ENV, True) is expected

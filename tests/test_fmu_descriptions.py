@@ -111,7 +111,7 @@ def _declared(fmu_dir, name: str) -> tuple[dict[str, str | None], dict]:
 
 
 FMUS = ["GroundMotionSource", "ShearBuilding", "MreIsolator", "MreIsolatorC", "SosmCurrentController",
-        "ConstantCurrent", "SwitchingCurrentController", "BoucWenIsolator"]
+        "ConstantCurrent", "SwitchingCurrentController", "BoucWenIsolator", "SensorChannels", "CurrentLag"]
 
 
 @pytest.mark.parametrize("name", FMUS)

@@ -297,7 +297,7 @@ def test_every_fmu_together_in_one_process_steps_as_it_does_alone(fmu_dir):
     """
     names = sorted(p.stem for p in fmu_dir.glob("*.fmu") if p.stem != "OpenSeesBuilding")
     assert {"ClippedOptimalCurrentController", "LyapunovCurrentController", "FrequencyCurrentController",
-            "BoucWenIsolator", "MreIsolatorC"} <= set(names)
+            "BoucWenIsolator", "MreIsolatorC", "SensorChannels", "CurrentLag"} <= set(names)
     alone = _every_fmu_run(fmu_dir, names, together=False)
     together = _every_fmu_run(fmu_dir, names, together=True)
     for name in names:

@@ -138,6 +138,16 @@ UNITS: dict[str, dict] = {
         "required": {},
         "signal": {"ag": (2.0, 9.0, 0.0)},
     },
+    "SensorChannels": {  # robustness variants: sensor noise and delay (issue 23, part 4)
+        "values": {"delay": 2, "seed": 5, "rms_disp_1": 1e-4, "rms_acc_3": 0.05, "u_disp_1": 0.001, "u_acc_3": 0.2},
+        "required": {},
+        "signal": {"u_disp_1": (0.002, 7.0, 0.0), "u_acc_3": (1.0, 11.0, 0.0), "u_force_2": (100.0, 3.0, 0.0)},
+    },
+    "CurrentLag": {  # robustness variants: coil-current lag
+        "values": {"tau": 0.02, "i_cmd": 1.5},
+        "required": {},
+        "signal": {"i_cmd": (1.0, 6.0, 1.5)},
+    },
 }
 
 

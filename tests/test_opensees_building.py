@@ -7,6 +7,8 @@ Skipped as a whole, with the reason, where openseespy cannot be imported (instal
 from __future__ import annotations
 
 import ast
+import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -245,6 +247,73 @@ FLOOR_NODES = [2]
     text = str(info.value)
     assert "failed to converge in the step from t = 0.0" in text
     assert "failed to converge after" in text  # OpenSees' ConvergenceTest, quoted
+
+
+# -- a real non-convergence mid-run, through the command and through the IDA's job ------------------------------
+SNAPBACK = PROJECT / "tests" / "structures" / "snapback_storey.py"
+SNAPBACK_RUN = ["scenarios/elcentro_opensees.yaml", "--set", f"building.script={SNAPBACK}",
+                "--set", "simulation.stop_time=3"]
+
+
+def first_yield_time(timeseries: Path, fy: float, k: float) -> float:
+    """First time [s] at which the spring force k |drift_1| of a linear storey 1 reaches fy [N]."""
+    data = np.genfromtxt(timeseries, delimiter=",", names=True)
+    force = k * np.abs(data["buildingdrift_1"])
+    assert force.max() >= fy, "the linear storey never reaches fy: the record is too weak for this test"
+    return float(data["time"][np.argmax(force >= fy)])
+
+
+@pytest.mark.slow  # two El Centro runs of 3 s as whole commands, about 6 s
+def test_a_storey_that_snaps_back_fails_the_run_at_yield_with_exit_1_and_partial_results(tmp_path):
+    """OpenSees' Newton iterations genuinely fail (tests/structures/snapback_storey.py: storey 1 snaps back at
+    FY_1), mid-run: exit 1, a message naming the time and OpenSees' words, the samples so far marked incomplete.
+
+    Independent expectation: the model is the linear Dyke building until storey 1 yields, so the failing step is
+    the one in which the linear building's storey-1 spring force k_1 |drift_1| first reaches FY_1.
+    """
+    c = script_constants(SNAPBACK)
+    fy, k1 = c["FY_1"], c["STIFFNESSES"][0]
+    out = tmp_path / "snapback"
+    done = subprocess.run([sys.executable, "orchestration/run.py", *SNAPBACK_RUN, "--out", str(out), "--no-plots"],
+                          cwd=PROJECT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 1, done.stderr
+    said = re.search(r"at t = ([0-9.]+) s: OpenSees' transient analysis failed to converge in the step from "
+                     r"t = ([0-9.]+) s", done.stderr)
+    assert said, done.stderr
+    assert "CTestNormDispIncr::test() - failed to converge after: 25 iterations" in done.stderr  # OpenSees' words
+    assert "partial results (marked incomplete)" in done.stderr
+    t_fail = float(said.group(2))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["status"] == "failed"
+    assert summary["end_time_s"] == pytest.approx(t_fail)
+    assert "failed to converge after: 25 iterations" in summary["error"]
+    linear = tmp_path / "linear"
+    done = subprocess.run([sys.executable, "orchestration/run.py", "scenarios/elcentro_opensees.yaml", "--set",
+                           "simulation.stop_time=3", "--out", str(linear), "--no-plots", "--quiet"],
+                          cwd=PROJECT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    h = 1e-3
+    assert 1.0 < t_fail < 3.0  # mid-run, after a second of elastic response
+    assert first_yield_time(linear / "timeseries.csv", fy, k1) == pytest.approx(t_fail + h, abs=0.5 * h)
+    partial = np.genfromtxt(out / "timeseries.csv", delimiter=",", names=True)
+    assert partial["time"][-1] == pytest.approx(t_fail)  # every step before the failing one is recorded
+    assert k1 * np.abs(partial["buildingdrift_1"]).max() < fy  # ... and elastic
+
+
+@pytest.mark.slow  # one El Centro run of 3 s with the IDA's job, about 3 s
+def test_the_ida_job_counts_a_real_opensees_non_convergence_as_a_collapse():
+    """The IDA's job (orchestration/ida_study/ida_jobs.ida_job) on the same run: status 'collapsed', not failed."""
+    from orchestration.api import load_scenario
+    from orchestration.batch.portable import file_bytes, portable
+    from orchestration.ida_study.ida_jobs import COLLAPSED_STATUS, ida_job
+
+    plan = load_scenario(PROJECT / SNAPBACK_RUN[0], [SNAPBACK_RUN[2], SNAPBACK_RUN[4]])
+    pp = portable(plan)
+    files = {sha: path.read_bytes() for sha, path in file_bytes([pp]).items()}
+    value = ida_job({"plan": pp, "files": files, "scale": 0.5, "masses": [98.3] * 4, "storeys": None})
+    assert value["status"] == COLLAPSED_STATUS, value
+    assert "failed to converge after: 25 iterations" in value["error"]
+    assert 1.0 < value["end_time_s"] < 3.0
 
 
 # -- one model per process --------------------------------------------------------------------------------------

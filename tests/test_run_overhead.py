@@ -38,6 +38,27 @@ def _run_in_subprocess(code: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+FRESH = "MRE_TEST_FRESH_PROCESS"  # set in the interpreter a test runs again in
+
+
+@pytest.fixture
+def csv_process_here(request) -> bool:
+    """Whether this process may fork the CSV process (Linux, two CPUs, one thread); if only other tests' threads stand
+    in the way, the test runs again alone in a fresh interpreter, whose result is this test's, and this gives False."""
+    from orchestration.master.recorder import CsvProcess
+
+    if CsvProcess.wanted(CsvProcess.MIN_ROWS, ["real"]):
+        return True
+    if (os.cpu_count() or 1) < 2 or not sys.platform.startswith("linux"):
+        pytest.skip("no CSV process on one CPU or off Linux")
+    if os.environ.get(FRESH):
+        pytest.fail("a fresh interpreter has more than one thread: the CSV process is never used")
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", request.node.nodeid],
+                          cwd=PROJECT, capture_output=True, text=True, check=False, env={**os.environ, FRESH: "1"})
+    assert done.returncode == 0 and " passed" in done.stdout, done.stdout[-3000:]
+    return False
+
+
 _COMMAND = """
 import json, sys
 from orchestration import run
@@ -172,3 +193,139 @@ def test_a_cancelled_plot_process_exits_and_draws_nothing(tmp_path):
     for pid in pids:  # reaped: no such child any more
         with pytest.raises(ChildProcessError):
             os.waitpid(pid, os.WNOHANG)
+
+
+# -- timeseries.csv written by a forked process while the units step (recorder.CsvProcess) -----------------------------
+
+def _csv_by_process(monkeypatch, on: bool) -> None:
+    """Make a short run use the CSV process (``on``) or write timeseries.csv in the run's own process."""
+    from orchestration.master.recorder import CsvProcess
+
+    if on:
+        monkeypatch.setattr(CsvProcess, "MIN_ROWS", 0)
+    else:
+        monkeypatch.setattr(CsvProcess, "wanted", staticmethod(lambda rows, kinds: False))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("overrides", [SHORT, (*SHORT, "limits.max_abs={building.x_0: 0.0005}")],
+                         ids=["complete", "stopped"])
+def test_the_csv_written_while_the_units_step_is_what_is_written_after_the_run(tmp_path, monkeypatch, overrides,
+                                                                             csv_process_here):
+    """The same bytes as the run's own writer (itself checked against Python's row-by-row '%.12g'), for a whole run
+    and for one a limit stops midway (its rows up to the stop), with and without plots."""
+    from orchestration.master import recorder
+
+    if not csv_process_here:
+        return
+    plan = plan_scenario(KOBE, overrides)
+    started, start = [], recorder.CsvProcess.start.__func__
+    monkeypatch.setattr(recorder.CsvProcess, "start", classmethod(
+        lambda cls, *a, **k: started.append(1) or start(cls, *a, **k)))
+    outcomes = {}
+    for name, on, plots in (("process", True, False), ("process_plots", True, True), ("inline", False, False)):
+        with monkeypatch.context() as m:
+            _csv_by_process(m, on)
+            outcomes[name] = run_plan(plan, tmp_path / name, plots=plots)
+    assert len(started) == 2  # the two runs meant to use it did
+    statuses = {o.result.status for o in outcomes.values()}
+    assert statuses == ({"complete"} if len(overrides) == 1 else {"failed"})
+    expected = (tmp_path / "inline" / "timeseries.csv").read_bytes()
+    rows = expected.count(b"\n") - 1
+    assert rows == outcomes["inline"].recorder.count and (rows == 6001) == (len(overrides) == 1)
+    for name in ("process", "process_plots"):
+        assert (tmp_path / name / "timeseries.csv").read_bytes() == expected, name
+        assert not [p.name for p in (tmp_path / name).iterdir() if p.name.endswith(".tmp")]
+
+
+def _csv_child_dies(*args, **kwargs) -> int:
+    os.kill(os.getpid(), signal.SIGKILL)
+    return 0
+
+
+def test_a_csv_process_that_dies_fails_the_run_naming_the_file_and_keeps_the_rest(tmp_path, monkeypatch,
+                                                                                  csv_process_here):
+    from orchestration.master import recorder
+
+    if not csv_process_here:
+        return
+    _csv_by_process(monkeypatch, True)
+    monkeypatch.setattr(recorder, "_csv_child", _csv_child_dies)
+    outcome = run_plan(plan_scenario(KOBE, SHORT), tmp_path / "run", plots=False)
+    assert outcome.result.status == "failed"
+    assert "timeseries.csv" in str(outcome.result.error) and "killed by signal 9" in str(outcome.result.error)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["complete"] is False and summary["steps_done"] == 6000
+    assert not (tmp_path / "run" / "timeseries.csv").exists()
+
+
+def test_a_cancelled_csv_process_leaves_no_file(tmp_path, csv_process_here):
+    from orchestration.master.recorder import CsvProcess, RowStorage
+
+    if not csv_process_here:
+        return
+    storage = RowStorage(100, 2, tmp_path, shared=True)
+    writer = CsvProcess.start(tmp_path / "timeseries.csv", ["a.x", "b.y"], storage)
+    storage.time[:50] = np.arange(50)
+    storage.data[:50] = 1.5
+    writer.rows(50)
+    pid = writer._pid
+    writer.cancel()
+    with pytest.raises(ChildProcessError):  # reaped
+        os.waitpid(pid, os.WNOHANG)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_rows_announced_in_uneven_ranges_give_the_file_the_writer_gives(tmp_path, csv_process_here):
+    """Rows announced as a run's ticks announce them (uneven ranges, repeats, a final count below the storage's
+    rows): the same bytes as :func:`write_timeseries` of those rows, NaN, infinities and -0.0 included."""
+    from orchestration.master.recorder import CsvProcess, RowStorage, write_timeseries
+
+    if not csv_process_here:
+        return
+    rng = np.random.default_rng(25)
+    rows, final = 23_000, 21_337
+    time = np.arange(rows) * 1e-3
+    data = rng.normal(size=(rows, 3)) * 10.0 ** rng.integers(-20, 6, size=(rows, 3))
+    data[5, 0], data[6, 1], data[7, 2] = np.nan, -np.inf, -0.0
+    storage = RowStorage(rows, 3, tmp_path, shared=True)
+    names = ["a.x", "b.y", "c.z"]
+    writer = CsvProcess.start(tmp_path / "timeseries.csv", names, storage)
+    done = 0
+    for count in (1, 1, 999, 5000, 5001, 17_777, final):
+        storage.time[done:count] = time[done:count]
+        storage.data[done:count] = data[done:count]
+        done = count
+        writer.rows(count)
+    writer.finish(final)
+    writer.wait()
+    write_timeseries(tmp_path / "expected.csv", time[:final], names, data[:final])
+    assert (tmp_path / "timeseries.csv").read_bytes() == (tmp_path / "expected.csv").read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["expected.csv", "timeseries.csv"]
+
+
+_EXIT = """
+import atexit, ctypes, sys
+from orchestration.run import exit_without_teardown
+atexit.register(lambda: open(sys.argv[1], "w").write("atexit ran"))
+sys.stdout.write("python's buffer, ")
+ctypes.CDLL(None).printf(b"C's buffer")
+exit_without_teardown(7)
+"""
+
+
+@pytest.mark.parametrize("profiled", [False, True])
+def test_the_command_ends_without_teardown_but_with_its_exit_code_atexit_and_buffered_output(tmp_path, profiled):
+    """``run.py`` ends with :func:`orchestration.run.exit_without_teardown`: its exit code, the ``atexit`` functions
+    and what Python and C still buffered (stdout to a pipe is block-buffered in both) are kept; under a profiler it
+    exits the usual way (the same)."""
+    code = ("import sys; sys.setprofile(lambda *args: None)" if profiled else "") + _EXIT
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path / "mark")], cwd=PROJECT, capture_output=True,
+                          env={**os.environ, "PYTHONPATH": str(PROJECT), "PYTHONUNBUFFERED": ""}, check=False)
+    assert done.returncode == 7
+    if profiled:  # the usual exit flushes both too, in an order of its own
+        out = done.stdout
+        assert len(out) == len(b"python's buffer, C's buffer") and b"python's buffer, " in out and b"C's buffer" in out
+    else:
+        assert done.stdout == b"python's buffer, C's buffer"
+    assert (tmp_path / "mark").read_text() == "atexit ran"

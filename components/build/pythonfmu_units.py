@@ -2,9 +2,10 @@
 
 Every ``components/shells/*_fmu.py`` holds one ``Fmi2Slave`` shell; its FMU is named after
 the class (the model identifier). The shell lists the physics modules of
-``components/physics/`` it imports in ``FMU_CORE_MODULES``; they travel in the FMU's
-resources under their own (unique) module names, and the shell imports them by that bare
-name.
+``components/physics/`` it imports in ``FMU_CORE_MODULES`` (and any shared shell helper of
+``components/shells/`` that is no FMU itself, e.g. ``model_based_shell``); they travel in the
+FMU's resources under their own (unique) module names, and the shell imports them by that
+bare name.
 
 pythonfmu 0.7 writes no units and no output dependencies, so the build rewrites the
 modelDescription (:mod:`components.build.model_description`). The Linux binary pythonfmu
@@ -69,19 +70,27 @@ class FmuSource:
     @property
     def sources(self) -> list[Path]:
         """Files whose change makes the FMU stale."""
-        cores = [CORES_DIR / f"{m}.py" for m in self.core_modules]
+        cores = [module_file(m) for m in self.core_modules]
         return [self.script, *cores, Path(__file__).resolve(), BUILD_DIR / "exit_fix.py",
                 BUILD_DIR / "model_description.py", LOG_SHIM_SOURCE]
 
 
+def module_file(name: str) -> Path:
+    """The file of a module listed in ``FMU_CORE_MODULES``: a physics core, else a shared shell helper
+    (a module of ``components/shells/`` that is no FMU itself, e.g. ``model_based_shell``)."""
+    core = CORES_DIR / f"{name}.py"
+    return core if core.is_file() or not (SHELLS_DIR / f"{name}.py").is_file() else SHELLS_DIR / f"{name}.py"
+
+
 def _load_module(script: Path, module_name: str):
-    sys.path.insert(0, str(CORES_DIR))
+    sys.path[:0] = [str(CORES_DIR), str(SHELLS_DIR)]
     try:
         spec = importlib.util.spec_from_file_location(module_name, script)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
     finally:
         sys.path.remove(str(CORES_DIR))
+        sys.path.remove(str(SHELLS_DIR))
     return module
 
 
@@ -306,7 +315,7 @@ def build(source: FmuSource, dest: Path) -> Path:
     with tempfile.TemporaryDirectory(prefix="mre_build_") as tmp:
         tmp = Path(tmp)
         script = _render_script(source, tmp)
-        cores = [CORES_DIR / f"{m}.py" for m in source.core_modules]
+        cores = [module_file(m) for m in source.core_modules]
         requirements = tmp / "requirements.txt"
         requirements.write_text(_requirements_text(source))
         docs = tmp / "documentation"
@@ -315,7 +324,7 @@ def build(source: FmuSource, dest: Path) -> Path:
         options = {"canGetAndSetFMUstate": True} if source.handles_state else {}
         if source.once_per_process:
             options["canBeInstantiatedOnlyOncePerProcess"] = True
-        sys.path.insert(0, str(CORES_DIR))
+        sys.path[:0] = [str(CORES_DIR), str(SHELLS_DIR)]  # its cores and shared shell helpers
         # The shell and its cores imported afresh, as they are in components/: a copy loaded earlier in this process
         # (by an FMU instantiated here, pythonfmu FMUs share the host's interpreter, or by a test importing the
         # shell while another pythonfmu was sys.modules["pythonfmu"]) may subclass another Fmi2Slave than the
@@ -329,7 +338,11 @@ def build(source: FmuSource, dest: Path) -> Path:
             raise BuildError(f"building {source.fmu_name} from {source.script.name}: {exc}") from exc
         finally:
             sys.path.remove(str(CORES_DIR))
-            sys.modules.pop(script.stem, None)
+            sys.path.remove(str(SHELLS_DIR))
+            # the copies imported here go too: an FMU of this process must not find a mix of a core left by the
+            # build and another put back (two classes of one exception, one raised and the other caught)
+            for name in (script.stem, *source.core_modules):
+                sys.modules.pop(name, None)
             sys.modules.update(shadowed)
         def write(f: BinaryIO) -> None:
             with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as zout:

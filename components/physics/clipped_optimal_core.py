@@ -52,33 +52,11 @@ from typing import Any
 import numpy as np
 
 try:
-    from .lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        NoiseIntensities,
-        ParameterError,
-        StateEstimator,
-        Weights,
-        building_from,
-        design_from,
-        linearised_plant,
-        lqr_gain,
-        regulated_cost,
-    )
+    from . import lqg_plant_core as plant_core
+    from .lqg_plant_core import BuildingModel, IsolatorLaw, NoiseIntensities, ParameterError, Weights
 except ImportError:  # inside an FMU the cores are top-level modules
-    from lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        NoiseIntensities,
-        ParameterError,
-        StateEstimator,
-        Weights,
-        building_from,
-        design_from,
-        linearised_plant,
-        lqr_gain,
-        regulated_cost,
-    )
+    import lqg_plant_core as plant_core
+    from lqg_plant_core import BuildingModel, IsolatorLaw, NoiseIntensities, ParameterError, Weights
 
 LAWS = ("clipped", "inverse")
 MAX_GRID = 100_001  # currents of the inverse law's grid: a sanity bound (it is evaluated every step)
@@ -174,35 +152,28 @@ class ClippedOptimalDesign:
             raise ParameterError("n_grid", f"n_grid must lie in [2, {MAX_GRID}], got {self.n_grid}")
 
 
-class ClippedOptimalController:
-    """LQG desired force and its clipped (or inverse-model) current; gains computed at construction."""
+class ClippedOptimalController(plant_core.EstimatedStateController):
+    """LQG desired force and its clipped (or inverse-model) current; gains computed at construction.
 
-    def __init__(
-        self,
-        design: ClippedOptimalDesign | None = None,
-        weights: Weights | None = None,
-        noise: NoiseIntensities | None = None,
-        building: BuildingModel | None = None,
-        isolator: IsolatorLaw | None = None,
-    ) -> None:
-        self.design = design if design is not None else ClippedOptimalDesign()
-        self.weights = weights if weights is not None else Weights()
-        self.building = building if building is not None else BuildingModel()
-        self.isolator = isolator if isolator is not None else IsolatorLaw()
+    Arguments (all optional, defaults where None): design :class:`ClippedOptimalDesign`, weights
+    :class:`Weights`, noise :class:`NoiseIntensities`, building :class:`BuildingModel`, isolator
+    :class:`IsolatorLaw`; :meth:`update` steps it (:class:`lqg_plant_core.EstimatedStateController`).
+    """
+
+    design_class = ClippedOptimalDesign
+
+    def _design(self) -> None:
         d = self.design
-        with np.errstate(all="ignore"):  # out-of-range parameters end in a ValueError, not in warnings
-            plant = linearised_plant(self.building, self.isolator, d.i_nom, d.x_lin)
-            Q, N, R = regulated_cost(plant, self.weights)
-            self.K_u = lqr_gain(plant.A, plant.b, Q, R, N)
-            n = self.building.n_levels
-            self.K = -self.K_u.copy()  # f_c = -K z
-            self.K[0] -= self.isolator.stiffness(d.i_nom, d.x_lin)
-            self.K[n] -= self.isolator.damping(d.i_nom)
-            if not np.all(np.isfinite(self.K)):
-                raise ValueError("the desired-force gain is not finite (a model parameter too large)")
-            self.estimator = StateEstimator(self.building, noise)
+        plant = plant_core.linearised_plant(self.building, self.isolator, d.i_nom, d.x_lin)
+        Q, N, R = plant_core.regulated_cost(plant, self.weights)
+        self.K_u = plant_core.lqr_gain(plant.A, plant.b, Q, R, N)
+        n = self.building.n_levels
+        self.K = -self.K_u.copy()  # f_c = -K z
+        self.K[0] -= self.isolator.stiffness(d.i_nom, d.x_lin)
+        self.K[n] -= self.isolator.damping(d.i_nom)
+        if not np.all(np.isfinite(self.K)):
+            raise ValueError("the desired-force gain is not finite (a model parameter too large)")
         self.f_c = 0.0
-        self.i = 0.0
 
     def desired_force(self, z: np.ndarray) -> float:
         """f_c = -K z [N], the desired isolator restoring force for the state z."""
@@ -215,31 +186,19 @@ class ClippedOptimalController:
             return clipped_current(f_c, F, d.i_max)
         return inverse_current(f_c, x, v, self.isolator, d.i_max, d.n_grid)
 
-    def update(self, x: float, v: float, acc: np.ndarray, F: float, h: float) -> float:
-        """Decide the current from the measurements at this communication point, then advance the estimate.
-
-        x [m], v [m/s] base displacement and velocity, acc [m/s^2] absolute accelerations of
-        levels 0..n, F [N] isolator force, h [s] the step. Returns i [A], held over the step.
-        EstimatorDiverged if the estimate stops being finite.
-        """
+    def decide(self, x: float, v: float, F: float) -> float:
+        """The desired force f_c from the estimate, then the law's current [A] (sets ``f_c``)."""
         self.f_c = self.desired_force(self.estimator.z)
-        self.i = self.current(self.f_c, x, v, F)
-        self.estimator.update(np.concatenate(([x], acc)), F, h)
-        return self.i
+        return self.current(self.f_c, x, v, F)
 
 
 def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
         ClippedOptimalDesign, Weights, NoiseIntensities, BuildingModel, IsolatorLaw]:
     """The controller's design objects from its FMU parameter values by name (the arguments of
     :class:`ClippedOptimalController`); :class:`ParameterError` names the first one out of its domain."""
-    return (design_from(ClippedOptimalDesign, values), design_from(Weights, values),
-            design_from(NoiseIntensities, values), building_from(values, n_levels), design_from(IsolatorLaw, values))
+    return plant_core.estimator_parts(ClippedOptimalDesign, values, n_levels)
 
 
 def parameter_problem(values: Mapping[str, Any], n_levels: int = 4) -> tuple[str, str] | None:
     """(parameter, message) for the first FMU parameter out of its domain, or None (a check before any run)."""
-    try:
-        controller_parts(values, n_levels)
-    except ParameterError as exc:
-        return exc.parameter, str(exc)
-    return None
+    return plant_core.first_parameter_problem(controller_parts, values, n_levels)

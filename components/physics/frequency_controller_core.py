@@ -35,23 +35,11 @@ import numpy as np
 from scipy.signal import periodogram
 
 try:
-    from .lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        ParameterError,
-        building_from,
-        design_from,
-        first_natural_frequency,
-    )
+    from . import lqg_plant_core as plant_core
+    from .lqg_plant_core import BuildingModel, IsolatorLaw, ParameterError
 except ImportError:  # inside an FMU the cores are top-level modules
-    from lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        ParameterError,
-        building_from,
-        design_from,
-        first_natural_frequency,
-    )
+    import lqg_plant_core as plant_core
+    from lqg_plant_core import BuildingModel, IsolatorLaw, ParameterError
 
 
 MAX_WINDOW = 10_000_000  # steps: a sanity bound (80 MB of samples)
@@ -129,7 +117,8 @@ class FrequencyController:
         self.currents = np.linspace(0.0, d.i_max, d.n_grid)
         try:
             with np.errstate(all="ignore"):
-                self.f1 = np.array([first_natural_frequency(self.building, self.isolator.stiffness(i, d.x_lin))
+                self.f1 = np.array([plant_core.first_natural_frequency(self.building,
+                                                                       self.isolator.stiffness(i, d.x_lin))
                                     for i in self.currents])
         except ValueError as exc:  # scipy refuses non-finite matrices
             raise ValueError(f"the natural frequencies cannot be computed: {exc}") from None
@@ -174,13 +163,10 @@ def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
         FrequencyDesign, BuildingModel, IsolatorLaw]:
     """The controller's design objects from its FMU parameter values by name (the arguments of
     :class:`FrequencyController`); :class:`ParameterError` names the first one out of its domain."""
-    return design_from(FrequencyDesign, values), building_from(values, n_levels), design_from(IsolatorLaw, values)
+    return (plant_core.design_from(FrequencyDesign, values), plant_core.building_from(values, n_levels),
+            plant_core.design_from(IsolatorLaw, values))
 
 
 def parameter_problem(values: Mapping[str, Any], n_levels: int = 4) -> tuple[str, str] | None:
     """(parameter, message) for the first FMU parameter out of its domain, or None (a check before any run)."""
-    try:
-        controller_parts(values, n_levels)
-    except ParameterError as exc:
-        return exc.parameter, str(exc)
-    return None
+    return plant_core.first_parameter_problem(controller_parts, values, n_levels)

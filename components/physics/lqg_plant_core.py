@@ -49,7 +49,7 @@ Smart Mater. Struct. 5, 565-575; the Lyapunov function of Jansen and Dyke (2000)
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -498,20 +498,26 @@ def building_from(values: dict[str, float], n_levels: int) -> BuildingModel:
 _LOADED_SOURCE = Path(__file__).read_bytes()
 
 
+def module_copy_problem(module_file: str, loaded_source: bytes, resources: str | None) -> str:
+    """A text if the module at ``module_file`` (source ``loaded_source`` as loaded) is not the calling FMU's own
+    copy in ``resources`` (its folder) but another FMU's with other code, else ""."""
+    if not resources:
+        return ""
+    loaded = Path(module_file)
+    own = Path(resources) / loaded.name
+    if not own.is_file() or own.resolve() == loaded.resolve() or own.read_bytes() == loaded_source:
+        return ""
+    return (f"another FMU in this process loaded a different version of the module {loaded.stem} "
+            f"(from {loaded.parent}); use FMUs built from the same project version")
+
+
 def foreign_copy_problem(resources: str | None) -> str:
     """A text if this module was loaded from another FMU's resources with other code, else "".
 
     Several FMUs of the project carry this module, and pythonfmu FMUs share one interpreter:
     the first one loaded is the one every FMU uses. ``resources`` is the calling FMU's folder.
     """
-    if not resources:
-        return ""
-    loaded = Path(__file__)
-    own = Path(resources) / loaded.name
-    if not own.is_file() or own.resolve() == loaded.resolve() or own.read_bytes() == _LOADED_SOURCE:
-        return ""
-    return (f"another FMU in this process loaded a different version of the module {loaded.stem} "
-            f"(from {loaded.parent}); use FMUs built from the same project version")
+    return module_copy_problem(__file__, _LOADED_SOURCE, resources)
 
 
 def design_from(cls: type, values: Mapping[str, Any], **fixed: Any) -> Any:
@@ -525,3 +531,71 @@ def design_from(cls: type, values: Mapping[str, Any], **fixed: Any) -> Any:
     kwargs = {f.name: type(getattr(default, f.name))(values.get(f.name, getattr(default, f.name)))
               for f in fields(cls) if f.name not in fixed}
     return cls(**kwargs, **fixed)
+
+
+def first_parameter_problem(parts: Callable[[Mapping[str, Any], int], Any], values: Mapping[str, Any],
+                            n_levels: int) -> tuple[str, str] | None:
+    """(parameter, message) for the first FMU parameter out of its domain, or None: ``parts`` (a core's
+    ``controller_parts``) builds the design objects from the values (a check before any run)."""
+    try:
+        parts(values, n_levels)
+    except ParameterError as exc:
+        return exc.parameter, str(exc)
+    return None
+
+
+def estimator_parts(design_class: type, values: Mapping[str, Any], n_levels: int, **fixed_weights: Any) -> tuple[
+        Any, Weights, NoiseIntensities, BuildingModel, IsolatorLaw]:
+    """(design, weights, noise, building, isolator) of a controller fed by the Kalman estimate, from its FMU
+    parameter values by name; ``fixed_weights`` overrides weights (Lyapunov: r = 0). :class:`ParameterError`
+    names the first one out of its domain."""
+    return (design_from(design_class, values), design_from(Weights, values, **fixed_weights),
+            design_from(NoiseIntensities, values), building_from(values, n_levels), design_from(IsolatorLaw, values))
+
+
+class EstimatedStateController:
+    """Base of the current controllers that act on the Kalman estimate of the building state (clipped-optimal,
+    Lyapunov): the design objects (defaults where None), the gains of the subclass's design and the shared
+    :class:`StateEstimator`, and the step: decide the current from the estimate at this communication point,
+    then advance the estimate with the measurements.
+
+    A subclass sets ``design_class``, may override :meth:`default_weights`, and implements
+    :meth:`_design` (its gains, from ``self.design``, ``self.weights``, ``self.building``, ``self.isolator``)
+    and :meth:`decide`.
+    """
+
+    design_class: type
+
+    def __init__(self, design: Any = None, weights: Weights | None = None, noise: NoiseIntensities | None = None,
+                 building: BuildingModel | None = None, isolator: IsolatorLaw | None = None) -> None:
+        self.design = design if design is not None else self.design_class()
+        self.weights = weights if weights is not None else self.default_weights()
+        self.building = building if building is not None else BuildingModel()
+        self.isolator = isolator if isolator is not None else IsolatorLaw()
+        with np.errstate(all="ignore"):  # out-of-range parameters end in a ValueError, not in warnings
+            self._design()
+            self.estimator = StateEstimator(self.building, noise)
+        self.i = 0.0
+
+    @staticmethod
+    def default_weights() -> Weights:
+        """The weights when none are given."""
+        return Weights()
+
+    def _design(self) -> None:
+        raise NotImplementedError
+
+    def decide(self, x: float, v: float, F: float) -> float:
+        """The current [A] from the estimate ``self.estimator.z`` and the measured x [m], v [m/s], F [N]."""
+        raise NotImplementedError
+
+    def update(self, x: float, v: float, acc: np.ndarray, F: float, h: float) -> float:
+        """Decide the current from the measurements at this communication point, then advance the estimate.
+
+        x [m], v [m/s] base displacement and velocity, acc [m/s^2] absolute accelerations of
+        levels 0..n, F [N] isolator force, h [s] the step. Returns i [A], held over the step.
+        EstimatorDiverged if the estimate stops being finite.
+        """
+        self.i = self.decide(x, v, F)
+        self.estimator.update(np.concatenate(([x], acc)), F, h)
+        return self.i

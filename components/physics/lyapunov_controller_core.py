@@ -41,33 +41,11 @@ from typing import Any
 import numpy as np
 
 try:
-    from .lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        NoiseIntensities,
-        ParameterError,
-        StateEstimator,
-        Weights,
-        building_from,
-        design_from,
-        linearised_plant,
-        lyapunov_matrix,
-        regulated_cost,
-    )
+    from . import lqg_plant_core as plant_core
+    from .lqg_plant_core import BuildingModel, IsolatorLaw, NoiseIntensities, ParameterError, Weights
 except ImportError:  # inside an FMU the cores are top-level modules
-    from lqg_plant_core import (
-        BuildingModel,
-        IsolatorLaw,
-        NoiseIntensities,
-        ParameterError,
-        StateEstimator,
-        Weights,
-        building_from,
-        design_from,
-        linearised_plant,
-        lyapunov_matrix,
-        regulated_cost,
-    )
+    import lqg_plant_core as plant_core
+    from lqg_plant_core import BuildingModel, IsolatorLaw, NoiseIntensities, ParameterError, Weights
 
 
 @dataclass(frozen=True)
@@ -89,29 +67,26 @@ def lyapunov_weights() -> Weights:
     return Weights(r=0.0)
 
 
-class LyapunovController:
-    """Bang-bang current in {0, i_max} that makes dV/dt smaller, V = 1/2 z'Pz."""
+class LyapunovController(plant_core.EstimatedStateController):
+    """Bang-bang current in {0, i_max} that makes dV/dt smaller, V = 1/2 z'Pz.
 
-    def __init__(
-        self,
-        design: LyapunovDesign | None = None,
-        weights: Weights | None = None,
-        noise: NoiseIntensities | None = None,
-        building: BuildingModel | None = None,
-        isolator: IsolatorLaw | None = None,
-    ) -> None:
-        self.design = design if design is not None else LyapunovDesign()
-        self.weights = weights if weights is not None else lyapunov_weights()
-        self.building = building if building is not None else BuildingModel()
-        self.isolator = isolator if isolator is not None else IsolatorLaw()
-        with np.errstate(all="ignore"):  # out-of-range parameters end in a ValueError, not in warnings
-            plant = linearised_plant(self.building, self.isolator, 0.0, self.design.x_lin)
-            Q, _, _ = regulated_cost(plant, self.weights)
-            self.P = lyapunov_matrix(plant.A, Q)
-            self.B = plant.b.copy()  # influence of a base force on z'
-            self.PB = self.P @ self.B
-            self.estimator = StateEstimator(self.building, noise)
-        self.i = 0.0
+    Arguments (all optional, defaults where None): design :class:`LyapunovDesign`, weights :class:`Weights`
+    (Q; default :func:`lyapunov_weights`), noise :class:`NoiseIntensities`, building :class:`BuildingModel`,
+    isolator :class:`IsolatorLaw`; :meth:`update` steps it (:class:`lqg_plant_core.EstimatedStateController`).
+    """
+
+    design_class = LyapunovDesign
+
+    @staticmethod
+    def default_weights() -> Weights:
+        return lyapunov_weights()
+
+    def _design(self) -> None:
+        plant = plant_core.linearised_plant(self.building, self.isolator, 0.0, self.design.x_lin)
+        Q, _, _ = plant_core.regulated_cost(plant, self.weights)
+        self.P = plant_core.lyapunov_matrix(plant.A, Q)
+        self.B = plant.b.copy()  # influence of a base force on z'
+        self.PB = self.P @ self.B
         self.switch = 0.0  # z'PB (f(i_max) - f(0)) [N * state units] at the last decision
 
     def switching_function(self, z: np.ndarray, x: float, v: float) -> float:
@@ -124,15 +99,9 @@ class LyapunovController:
         self.switch = self.switching_function(z, x, v)
         return self.design.i_max if self.switch < 0.0 else 0.0
 
-    def update(self, x: float, v: float, acc: np.ndarray, F: float, h: float) -> float:
-        """Decide the current from the estimate at this communication point, then advance the estimate.
-
-        x [m], v [m/s], acc [m/s^2] absolute accelerations of levels 0..n, F [N], h [s].
-        Returns i [A], held over the step; EstimatorDiverged if the estimate stops being finite.
-        """
-        self.i = self.current(self.estimator.z, x, v)
-        self.estimator.update(np.concatenate(([x], acc)), F, h)
-        return self.i
+    def decide(self, x: float, v: float, F: float) -> float:
+        """:meth:`current` for the estimate at this communication point (F is not used)."""
+        return self.current(self.estimator.z, x, v)
 
 
 def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
@@ -140,14 +109,9 @@ def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
     """The controller's design objects from its FMU parameter values by name (the arguments of
     :class:`LyapunovController`; Q's weights without a control weight, r = 0); :class:`ParameterError`
     names the first one out of its domain."""
-    return (design_from(LyapunovDesign, values), design_from(Weights, values, r=0.0),
-            design_from(NoiseIntensities, values), building_from(values, n_levels), design_from(IsolatorLaw, values))
+    return plant_core.estimator_parts(LyapunovDesign, values, n_levels, r=0.0)
 
 
 def parameter_problem(values: Mapping[str, Any], n_levels: int = 4) -> tuple[str, str] | None:
     """(parameter, message) for the first FMU parameter out of its domain, or None (a check before any run)."""
-    try:
-        controller_parts(values, n_levels)
-    except ParameterError as exc:
-        return exc.parameter, str(exc)
-    return None
+    return plant_core.first_parameter_problem(controller_parts, values, n_levels)

@@ -15,23 +15,21 @@ import copy
 import math
 import sys
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu import Fmi2Slave, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
 try:
-    import lqg_plant_core as plant_core
+    import model_based_shell as shared
     from frequency_controller_core import FrequencyController, FrequencyDesign, controller_parts
-    from lqg_plant_core import IsolatorLaw
 except ImportError as exc:  # the host's Python lacks a package: say which (the build's logging shim shows it)
     raise ImportError(f"the FrequencyCurrentController unit needs the Python packages numpy and scipy in the "
                       f"host's interpreter ({sys.executable}): {exc}") from exc
 
-FMU_CORE_MODULES = ("lqg_plant_core", "frequency_controller_core")
+FMU_CORE_MODULES = ("lqg_plant_core", "model_based_shell", "frequency_controller_core")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 UNIT = "FrequencyCurrentController"
-N_LEVELS = 4  # base floor and three storeys (the paper's building)
 _REALS = {
     "i_max": ("A", "largest current i_max"),
     "i_start": ("A", "current held until the first window has filled"),
@@ -44,6 +42,7 @@ _INTEGERS = {
     "update_every": "steps between two estimates of the dominant frequency (>= 1)",
     "n_grid": "currents of the grid on which the natural frequency is precomputed (>= 2)",
 }
+_OUTPUTS = ("_i", "_f_dominant", "_f_structure")
 
 
 class FrequencyCurrentController(Fmi2Slave):
@@ -54,15 +53,9 @@ class FrequencyCurrentController(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
-        design, isolator = FrequencyDesign(), IsolatorLaw()
+        design = FrequencyDesign()
         self.ag = 0.0
-        for name in (*_REALS, *_INTEGERS):
-            setattr(self, name, getattr(design, name))
-        self.n_isolators = isolator.n_isolators
-        for name in plant_core.ISOLATOR_DOCS:
-            setattr(self, name, getattr(isolator, name))
-        for name, value in plant_core.building_defaults(N_LEVELS).items():
-            setattr(self, name, value)
+        shared.set_model_defaults(self, (({**_REALS, **_INTEGERS}, design),))
         self._controller: FrequencyController | None = None
         self._failed = ""
         self._i = design.i_start
@@ -71,45 +64,20 @@ class FrequencyCurrentController(Fmi2Slave):
 
         self.fmi_units = {"ag": "m/s2", "i": "A", "f_dominant": "Hz", "f_structure": "Hz"}
         self.fmi_dependencies = {}
-        inp = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
-        par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        out = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.continuous}
-        self.register_variable(Real("ag", description="ground acceleration", **inp))
+        self.register_variable(Real("ag", description="ground acceleration", **shared.INPUT))
         for name, text in _INTEGERS.items():
-            self.register_variable(Integer(name, description=text, **par))
-        self.register_variable(Integer("n_isolators", description="controller's model: devices in parallel", **par))
-        for table in (_REALS, plant_core.ISOLATOR_DOCS, plant_core.building_docs(N_LEVELS)):
-            for name, (unit, text) in table.items():
-                self.register_variable(Real(name, description=text, **par))
-                self.fmi_units[name] = unit
-        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **out))
+            self.register_variable(Integer(name, description=text, **shared.PARAMETER))
+        shared.register_model_parameters(self, _REALS)
+        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.OUTPUT))
         self.register_variable(Real("f_dominant", description="dominant frequency of the ground acceleration over "
                                     "the last window (0 before the first window has filled)",
-                                    getter=lambda: self._f_dominant, **out))
+                                    getter=lambda: self._f_dominant, **shared.OUTPUT))
         self.register_variable(Real("f_structure", description="first natural frequency of the isolated structure "
                                     "at the commanded current (linearised model)",
-                                    getter=lambda: self._f_structure, **out))
-
-    def _make_controller(self) -> FrequencyController:
-        # the core's controller_parts: the same function the pre-run check (parameter_problem) uses
-        return FrequencyController(*controller_parts(self._parameter_values(), N_LEVELS))
-
-    def _parameter_values(self) -> dict:
-        """Every parameter's present value by FMU name (the core builds the design from them)."""
-        return {v.name: getattr(self, v.name) for v in self.vars.values() if v.causality == Fmi2Causality.parameter}
+                                    getter=lambda: self._f_structure, **shared.OUTPUT))
 
     def exit_initialization_mode(self):
-        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
-        self._failed = plant_core.foreign_copy_problem(self.resources)
-        if not self._failed:
-            try:
-                self._controller = self._make_controller()
-            except (ValueError, ArithmeticError, TypeError, MemoryError) as exc:  # LinAlgError is a ValueError
-                self._failed = f"invalid parameter: {exc}"
-        if self._failed:
-            self._failed = f"{UNIT}: {self._failed}"
-            self._i = self._f_dominant = self._f_structure = math.nan
-            self.log(self._failed, Fmi2Status.error)
+        if not shared.start_controller(self, UNIT, FrequencyController, controller_parts, _OUTPUTS):
             return
         self._i = self._controller.i
         self._f_structure = self._controller.f_structure

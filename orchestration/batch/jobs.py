@@ -64,7 +64,18 @@ def run_folder(payload: dict[str, Any]) -> tuple[Any, dict[str, bytes]]:
 
 
 def write_run_files(folder: Path, files: dict[str, bytes]) -> None:
-    """Write a run folder sent back by :func:`run_folder` (each file to a temporary name, then renamed)."""
+    """Write a run folder sent back by :func:`run_folder` (each file to a temporary name, then renamed).
+
+    ``summary.json`` is written last, after ``manifest.json``, as :func:`~orchestration.master.session.run_plan`
+    does: if a write fails (a full disk), the OSError propagates and the folder holds no summary that says
+    complete (one left from before is removed), so it never looks complete without being so.
+    """
     folder.mkdir(parents=True, exist_ok=True)
-    for name, blob in files.items():
-        atomic_write_bytes(folder / name, zlib.decompress(blob), mode=0o644)
+    last = ("manifest.json", "summary.json")
+    order = [n for n in files if n not in last] + [n for n in last if n in files]
+    try:
+        for name in order:
+            atomic_write_bytes(folder / name, zlib.decompress(files[name]), mode=0o644)
+    except OSError:
+        (folder / "summary.json").unlink(missing_ok=True)
+        raise

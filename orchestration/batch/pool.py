@@ -229,7 +229,8 @@ class BatchPool:
     """
 
     def __init__(self, scheduler: str | None = None, workers: int | None = None, *, max_worker_deaths: int = 2,
-                 connect_timeout_s: float = 10.0, preload: tuple[str, ...] = ()) -> None:
+                 connect_timeout_s: float = 10.0, preload: tuple[str, ...] = (), answer_timeout_s: float = 120.0
+                 ) -> None:
         if workers is not None and workers < 1:
             raise ValueError("workers must be at least 1")
         if max_worker_deaths < 0:
@@ -238,6 +239,7 @@ class BatchPool:
         self.requested_workers = workers
         self.max_worker_deaths = max_worker_deaths
         self.connect_timeout_s = connect_timeout_s
+        self.answer_timeout_s = answer_timeout_s  # bound of every other wait on the cluster (workers' set-up, copies)
         self.preload = tuple(preload)
         self.client: Any = None
         self.cluster: Any = None
@@ -281,7 +283,13 @@ class BatchPool:
                                         f"(waited {self.connect_timeout_s:g} s): start some with "
                                         f"'dask worker {self.scheduler}'") from None
         try:
-            self.workers_info = self.client.run(worker_info, self.preload)
+            self.workers_info = self.client.run(worker_info, self.preload, callback_timeout=self.answer_timeout_s)
+        except TimeoutError:  # a worker (or the scheduler) that never answers: every wait on the network is bounded
+            where = self.scheduler or "the local cluster"
+            self.close()
+            raise BatchUnavailable(f"the Dask workers at {where} did not finish their set-up within "
+                                    f"{self.answer_timeout_s:g} s (Python and package versions, job modules "
+                                    "imported): is a worker stuck or overloaded?") from None
         except Exception as exc:  # a worker that cannot import the project
             self.close()
             raise BatchUnavailable(f"the Dask workers cannot run this project's jobs (is mre-cosim installed "
@@ -347,7 +355,7 @@ class BatchPool:
             warnings.simplefilter("ignore")
             handle = self.client.submit(hold, obj, pure=False, key=f"shared-{os.urandom(8).hex()}")
         try:
-            self.client.replicate([handle])
+            self.client.replicate([handle], callback_timeout=self.answer_timeout_s)
         except Exception:  # best effort: without copies, jobs fetch it from a peer
             pass
         self._shared[key or handle.key] = handle

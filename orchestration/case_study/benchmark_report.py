@@ -185,4 +185,8 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
         atomic_write_text(folder / f"criteria_{second}.csv", csv_text(rows2))
         blocks += _table(rows2, f"Baseline **{second}** (criteria_{second}.csv): {baseline} drives the isolator "
                                 "beyond its identified range on some records, which flatters ratios to it.")
+    if study.config.get("robustness"):  # variants of the plant and sensors: robustness.csv and its section
+        from orchestration.case_study.robustness_report import robustness_blocks
+
+        blocks += robustness_blocks(folder, study, raw, baseline)
     return blocks

@@ -14,6 +14,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
+from orchestration.case_study.robustness_config import RobustnessSpec
 from orchestration.case_study.strategies import (
     SHIPPED,
     Strategy,
@@ -182,6 +183,7 @@ class StudySpec(_Strict):
     strategy_files: list[str] = Field(default_factory=list)  # more strategy files, over the shipped one
     strategy_definitions: dict[str, StrategyEntry] = Field(default_factory=dict)  # strategies of this file
     benchmark: BenchmarkSpec | None = None  # criteria.csv and the benchmark's report sections
+    robustness: RobustnessSpec | None = None  # variants of plant and sensors (robustness.csv), needs benchmark
     overrides: list[str] = Field(default_factory=list)
     i_max: float = 3.0
     paper_current_range: tuple[float, float] = (0.0, 2.5)
@@ -219,6 +221,9 @@ class StudySpec(_Strict):
             raise ValueError(f"the sweep from {self.sweep.start:g} A to i_max = {self.i_max:g} A in steps of "
                              f"{self.sweep.step:g} A tries more than {MAX_SWEEP_POINTS:,} currents; use a larger "
                              "sweep.step")
+        if self.robustness is not None and self.benchmark is None:
+            raise ValueError("robustness needs a benchmark section (its criteria are normalised by the benchmark's "
+                             "baseline)")
         if self.fig15.i_max > self.i_max:
             raise ValueError(f"fig15.i_max ({self.fig15.i_max} A) must not exceed i_max ({self.i_max} A)")
         return self

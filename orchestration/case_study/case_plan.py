@@ -15,6 +15,7 @@ from orchestration.batch.portable import PortablePlan, job_key, plan_content, po
 from orchestration.case_study import case_jobs
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy
 from orchestration.case_study.case_records import PreparedStudy, RecordInfo
+from orchestration.case_study.robustness_plan import check_variants
 from orchestration.case_study.strategies import check_strategy
 from orchestration.case_study.tuning import read_gains, run_overrides, system_setup
 from orchestration.engine_hooks import plan_scenario
@@ -80,6 +81,8 @@ def prepare(study: LoadedStudy) -> PreparedStudy:
         records[r], plan = check_record(study, r, sets)
         sim = plan.loaded.scenario.simulation
         algorithms[r], step = sim.algorithm, sim.step
+    if study.spec.robustness is not None:
+        check_variants(study, run_overrides(study.spec), sets, run_strategy_overrides)
     return PreparedStudy(records, sets, algorithms, step)
 
 

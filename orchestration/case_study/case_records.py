@@ -57,10 +57,13 @@ class RunEntry:
     status: str | None = None  # how the run ended (None: it did not end)
     wall_time_s: float | None = None
     unit_warnings: dict[str, Any] | None = None
+    variant: str | None = None  # the robustness variant it runs (None: the study's own, nominal run)
 
     def to_json(self) -> dict[str, Any]:
         out = {"key": self.key, "record": self.record, "strategy": self.strategy, "folder": self.folder,
                "ok": self.ok, "error": self.error}
+        if self.variant is not None:
+            out["variant"] = self.variant
         if self.overrides is not None:
             out.update(current_A=self.current_A, overrides=self.overrides)
         if self.status is not None:
@@ -71,7 +74,7 @@ class RunEntry:
     def from_json(cls, d: dict[str, Any]) -> RunEntry:
         return cls(d["key"], d["record"], d["strategy"], d["folder"], bool(d.get("ok")), d.get("error"),
                    d.get("current_A"), d.get("overrides"), d.get("status"), d.get("wall_time_s"),
-                   d.get("unit_warnings"))
+                   d.get("unit_warnings"), d.get("variant"))
 
 
 @dataclass(frozen=True)
@@ -153,10 +156,11 @@ class CaseStudyRecord:
     resumed: list[str] | None = None
     interrupted: bool | None = None
     metrics: dict[str, dict[str, float]] | None = None  # record/strategy -> metrics (written by the report)
+    variant_runs: list[RunEntry] = field(default_factory=list)  # robustness variants: record/strategy/variant
 
     def run(self, key: str) -> RunEntry:
-        """The run entry of ``record/strategy``."""
-        return next(e for e in self.runs if e.key == key)
+        """The run entry of ``record/strategy`` (or of a robustness variant, ``record/strategy/variant``)."""
+        return next(e for e in (*self.runs, *self.variant_runs) if e.key == key)
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -175,6 +179,8 @@ class CaseStudyRecord:
             out["interrupted"] = self.interrupted
         if self.metrics is not None:
             out["metrics"] = self.metrics
+        if self.variant_runs:
+            out["variant_runs"] = [e.to_json() for e in self.variant_runs]
         return out
 
     @classmethod
@@ -192,4 +198,4 @@ class CaseStudyRecord:
             reference={k: ReferenceOutcome.from_json(v) for k, v in (d.get("reference") or {}).items()},
             runs=[RunEntry.from_json(e) for e in d.get("runs", [])], indices=d.get("indices") or {},
             jobs_computed=d.get("jobs_computed", 0), resumed=d.get("resumed"), interrupted=d.get("interrupted"),
-            metrics=d.get("metrics"))
+            metrics=d.get("metrics"), variant_runs=[RunEntry.from_json(e) for e in d.get("variant_runs", [])])

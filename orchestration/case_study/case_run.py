@@ -52,6 +52,7 @@ from orchestration.case_study.case_records import (
     utc_now,
 )
 from orchestration.case_study.case_report import read_study, write_outputs
+from orchestration.case_study.robustness_plan import VariantPlanner, variants
 from orchestration.case_study.tuning import NotMonolithic, read_gains, run_overrides
 from orchestration.engine_hooks import require_kind
 from orchestration.master.errors import ScenarioError
@@ -140,7 +141,9 @@ def count_jobs(spec: StudySpec, verify: bool = True) -> int:
     n = len(spec.records)
     references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
     references *= verify
-    return n * ("best-constant" in spec.strategies) + n * len(spec.strategies) + n * references
+    n_variants = len(spec.robustness.variants) if spec.robustness is not None else 0
+    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + n_variants)
+            + n * references)
 
 
 class JobRunner:
@@ -282,9 +285,38 @@ def plan_runs(study: LoadedStudy, runner: JobRunner) -> tuple[list[PlannedJob], 
     return runs, references
 
 
+def plan_variant_runs(study: LoadedStudy, runner: JobRunner) -> list[PlannedJob]:
+    """Every record x strategy under every robustness variant (run entries added to the record), longest record
+    first; the strategies keep their nominal design (parameters, gains, best constant current of the nominal sweep)."""
+    spec, record = study.spec, runner.record
+    if not variants(study):
+        return []
+    base = run_overrides(spec)
+    planner = VariantPlanner(study, base)
+    gains = {s: doc["gains"] for s, doc in record.gain_sets.items()}
+    jobs = []
+    for r in sorted(record.records, key=lambda r: -record.records[r].stop_time_s):
+        for v in variants(study):
+            for s in spec.strategies:
+                entry = RunEntry(f"{r}/{s}/{v}", r, s, f"runs/{r}-{s}--{v}", variant=v)
+                record.variant_runs.append(entry)
+                if s == "best-constant" and r not in record.best_current:
+                    entry.error = "current sweep failed"
+                    runner.done(JobResult(entry.key, False, error=entry.error, status="failed"), stored=True)
+                    continue
+                strategy, best = study.strategy(s), record.best_current.get(r)
+                extra = run_strategy_overrides(study, s, study.scenario_path(r), spec.i_max,
+                                               gains.get(strategy.entry.gains or ""), best)
+                extra = (*extra, *planner.overrides(r, v, extra))
+                entry.current_A = strategy.constant_current(spec.i_max, best)
+                entry.overrides = list(extra)
+                jobs.append(plan_job(study, entry.key, "cosim", (*base, *extra, BENCHMARK_OUTPUTS_OVERRIDE), {}))
+    return jobs
+
+
 def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
     """The finished jobs into the run entries and references (a run without a result: not run)."""
-    for entry in record.runs:
+    for entry in [*record.runs, *record.variant_runs]:
         res = results.get(entry.key)
         if res is None:
             entry.error = entry.error or "not run (interrupted)"
@@ -324,7 +356,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
         if "best-constant" in spec.strategies:
             run_sweeps(study, runner)
         runs, references = plan_runs(study, runner)
-        runner.run(cosim_job, runs, isolate=True)
+        runner.run(cosim_job, [*runs, *plan_variant_runs(study, runner)], isolate=True)
         skipped = runner.run(reference_job, references, isolate=False, cache=shared_store(), compute=verify)
         record.provenance["references_not_computed"] = skipped  # neither cached nor asked for (--verify)
     except KeyboardInterrupt:
@@ -336,7 +368,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     write_json(folder / "study.json", record.to_json())
     bar.close()
     write_outputs(folder, record)
-    failed = [e.key for e in record.runs if not e.ok]
+    failed = [e.key for e in [*record.runs, *record.variant_runs] if not e.ok]
     failed += [k for k, v in {**record.sweep, **record.reference}.items() if not v.ok]
     print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
     return 1 if failed or interrupted else 0

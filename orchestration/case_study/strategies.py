@@ -27,6 +27,7 @@ record scenario with the strategy applied.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -169,13 +170,43 @@ def read_strategy_file(path: Path) -> dict[str, Strategy]:
         spec = StrategyFile.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(validation_problems(exc, lines, path, StrategyFile)) from None
-    return {name: Strategy(name, entry, path, lines, ("strategies", name)) for name, entry in spec.strategies.items()}
+    return _checked({name: Strategy(name, entry, path, lines, ("strategies", name))
+                    for name, entry in spec.strategies.items()})
+
+
+def _checked(strategies: dict[str, Strategy]) -> dict[str, Strategy]:
+    """``strategies`` if every number of every entry's parameters is finite and no text holds a NUL, else
+    ScenarioError naming each one at its key and line: a strategy a study defines but does not list is checked too
+    (issue 26, class 5)."""
+    problems = []
+
+    def walk(strategy: Strategy, key: tuple[Any, ...], value: Any) -> None:
+        if isinstance(value, float) and not math.isfinite(value):
+            name = next(k for k in reversed(key) if isinstance(k, str))
+            problems.append(strategy.problem(f"{name} must be a finite number, got {value!r} "
+                                             f"(strategy {strategy.name!r})", *key))
+        elif isinstance(value, str) and "\x00" in value:  # cut short on its way to the C API, or an OS error
+            problems.append(strategy.problem(f"{value!r} holds a NUL character (\\0) (strategy {strategy.name!r})",
+                                             *key))
+        elif isinstance(value, dict):
+            for k, v in value.items():
+                walk(strategy, (*key, k), v)
+        elif isinstance(value, list | tuple):
+            for k, v in enumerate(value):
+                walk(strategy, (*key, k), v)
+
+    for strategy in strategies.values():
+        walk(strategy, ("parameters",), dict(strategy.entry.parameters))
+        walk(strategy, ("fmu",), strategy.entry.fmu)
+    if problems:
+        raise ScenarioError(problems)
+    return strategies
 
 
 def inline_strategies(entries: dict[str, StrategyEntry], path: Path, lines: Lines, key: str
                       ) -> dict[str, Strategy]:
-    """Strategies written in a study file under ``key`` (already validated)."""
-    return {name: Strategy(name, entry, path, lines, (key, name)) for name, entry in entries.items()}
+    """Strategies written in a study file under ``key`` (already validated; every number finite, listed or not)."""
+    return _checked({name: Strategy(name, entry, path, lines, (key, name)) for name, entry in entries.items()})
 
 
 def builtin_strategies() -> dict[str, Strategy]:

@@ -4,6 +4,10 @@ Read with the project's YAML loader (file and line of every key) and validated w
 pydantic (unknown keys refused). Every problem -- of the file, of the suite (unknown name,
 a folder without a readable record), of the strategies and the gains -- is collected into
 one :class:`~orchestration.master.errors.ScenarioError` before anything is computed.
+
+Strategies are the case study's strategy entries (:mod:`orchestration.case_study.strategies`):
+the shipped ``scenarios/strategies.yaml``, then the study's ``strategy_files``, then its
+``strategy_definitions`` (:attr:`LoadedIda.library`); ``{name, overrides}`` entries stay as before.
 """
 
 from __future__ import annotations
@@ -16,12 +20,24 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.case_study.case_config import apply_overrides
+from orchestration.case_study.strategies import (
+    BEST,
+    SHIPPED,
+    Strategy,
+    StrategyEntry,
+    inline_strategies,
+    read_strategy_file,
+)
 from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
-from orchestration.master.errors import Problem
+from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems
 from orchestration.master.yaml_source import load_tree
 
-BUILTIN_STRATEGIES = ("passive-off", "passive-on", "sosm", "on-off")
+# Why a strategy that needs the case study's best constant current cannot be an IDA strategy.
+NO_BEST_CONSTANT = ("is the case study's best constant current, chosen per record by a sweep over the whole record "
+                    "(an oracle no controller can be); an IDA has no such sweep (it would be another current at "
+                    "every record and intensity): name a fixed current instead, e.g. strategy_definitions: "
+                    "{hold-1.5A: {parameters: {mode: passive, i_passive: 1.5}}}")
 # limit-state quantity -> (column of the results table, factor to SI, unit)
 QUANTITIES = {
     "isolator_displacement": ("x_base_mm", 1e-3, "m"),
@@ -128,12 +144,15 @@ class IdaSpec(_Strict):
     window: WindowSpec = Field(default_factory=WindowSpec)
     intensity: IntensitySpec
     strategies: list[str | CustomStrategy] = Field(default_factory=lambda: ["passive-off", "passive-on", "sosm"])
+    strategy_files: list[str] = Field(default_factory=list)  # more strategy files, over scenarios/strategies.yaml
+    strategy_definitions: dict[str, StrategyEntry] = Field(default_factory=dict)  # strategies of this file
     limit_states: dict[str, LimitStateSpec]
     storey_heights: list[float] | None = None  # [m] h_j of storeys 1..n: for drift_ratio and collapse
     collapse_margin: CollapseMarginSpec | None = None  # S_MT for FEMA P695's CMR (else the ratio to the records)
     overrides: list[str] = Field(default_factory=list)
     i_max: float = Field(3.0, gt=0.0)
     gains: str = "sosm_gains.yaml"
+    fig15_gains: str = "sosm_gains_fig15.yaml"  # the gain set of strategy entries with gains: sosm-fig15
     confidence: float = Field(0.95, gt=0.0, lt=1.0)
     workers: int | None = Field(None, ge=1)
     max_worker_deaths: int = Field(2, ge=0)
@@ -151,10 +170,6 @@ class IdaSpec(_Strict):
     @field_validator("strategies")
     @classmethod
     def _strategies(cls, value: list[str | CustomStrategy]) -> list[str | CustomStrategy]:
-        unknown = [s for s in value if isinstance(s, str) and s not in BUILTIN_STRATEGIES]
-        if unknown:
-            raise ValueError(f"unknown strategies {unknown} (known: {', '.join(BUILTIN_STRATEGIES)}; or "
-                             "{name: NAME, overrides: [...]})")
         names = [s if isinstance(s, str) else s.name for s in value]
         if not names:
             raise ValueError("a study needs at least one strategy")
@@ -194,6 +209,7 @@ class LoadedIda:
         self.spec = spec
         self.path = path
         self.lines = lines or {}
+        self._library: dict[str, Strategy] | None = None
 
     def base_dir(self, *key: Any) -> Path:
         """Folder that a relative path at ``key`` is relative to: that of the file that wrote the key (a study
@@ -205,6 +221,54 @@ class LoadedIda:
         """A path of the study (``key``: where the file sets it), absolute."""
         p = Path(name)
         return p if p.is_absolute() else (self.base_dir(*key) / p).resolve()
+
+    def strategy_file(self, k: int) -> Path:
+        """The ``k``-th of ``strategy_files``, absolute."""
+        return self.resolve(self.spec.strategy_files[k], "strategy_files", k)
+
+    @property
+    def library(self) -> dict[str, Strategy]:
+        """Every strategy entry the study may name, as the case study reads them: the shipped file
+        (``scenarios/strategies.yaml``), then its ``strategy_files``, then its own ``strategy_definitions``.
+
+        ScenarioError for a strategy file that is missing or malformed.
+        """
+        if self._library is None:
+            library = read_strategy_file(SHIPPED)
+            for k in range(len(self.spec.strategy_files)):
+                library.update(read_strategy_file(self.strategy_file(k)))
+            library.update(inline_strategies(self.spec.strategy_definitions, self.path, self.lines,
+                                             "strategy_definitions"))
+            self._library = library
+        return self._library
+
+    def strategy_problems(self) -> list[Problem]:
+        """Located problems of the strategies the study names: a missing strategy file, an unknown name, or an
+        entry that needs the case study's best constant current (refused: :data:`NO_BEST_CONSTANT`)."""
+        problems = []
+        for k in range(len(self.spec.strategy_files)):
+            if not self.strategy_file(k).is_file():
+                file, line = self.lines.get(("strategy_files", k), (str(self.path), None))
+                problems.append(Problem(f"strategy file {self.strategy_file(k)} does not exist", f"strategy_files.{k}",
+                                        file, line))
+        if problems:
+            return problems
+        try:
+            library = self.library
+        except ScenarioError as exc:
+            return list(exc.problems)
+        for k, s in enumerate(self.spec.strategies):
+            if not isinstance(s, str):
+                continue
+            whole = self.lines.get(("strategies",), (str(self.path), None))  # the list's line (a --set)
+            file, line = whole if whole[0].startswith("--set") else self.lines.get(("strategies", k), whole)
+            if s not in library:
+                known = ", ".join(n for n in library if n != "best-constant")
+                problems.append(Problem(f"unknown strategy {s!r} (known: {known}; or {{name: NAME, overrides: "
+                                        "[...]})", f"strategies.{k}", file, line))
+            elif BEST in library[s].entry.parameters.values():
+                problems.append(Problem(f"strategy {s!r} {NO_BEST_CONSTANT}", f"strategies.{k}", file, line))
+        return problems
 
 
 

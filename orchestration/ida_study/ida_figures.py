@@ -2,9 +2,9 @@
 
 * ``figures/ida_curves.png``: one panel per strategy; for every record component the peak
   isolator displacement [mm] against the intensity, the median over components in bold,
-  the identified 8 mm and the 15 mm device limit marked.
-* ``figures/fragility.png``: one panel per limit state, the strategies side by side: the
-  fitted lognormal, its confidence band, and the observed fraction at each level.
+  the identified 8 mm and the 15 mm device limit marked (failed runs left out, as in the stripes).
+* ``figures/fragility.png``: one panel per limit state, a curve per strategy (controller) on
+  each: the fitted lognormal, its confidence band, and the observed fraction at each level.
 """
 
 from __future__ import annotations
@@ -17,10 +17,12 @@ import numpy as np
 
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
+from orchestration.ida_study.ida_metrics import ENDED
 from orchestration.ida_study.ida_records import IdaInfo
 
 COLORS = ("0.25", "tab:blue", "tab:red", "tab:purple", "tab:green", "tab:orange", "tab:brown", "tab:cyan")
 STYLES = {"passive-off": ":", "passive-on": "--"}
+MAX_COLUMNS = 4  # panels per row of the IDA curves
 
 
 def im_label(info: IdaInfo) -> str:
@@ -46,9 +48,13 @@ def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies
     import matplotlib.pyplot as plt
 
     levels = sorted({r["intensity"] for r in rows})
-    fig, axes = plt.subplots(1, len(strategies), figsize=(4.2 * len(strategies), 4.2), sharey=True, squeeze=False)
-    for ax, s in zip(axes[0], strategies, strict=True):
-        mine = [r for r in rows if r["strategy"] == s]
+    n_rows = math.ceil(len(strategies) / MAX_COLUMNS)  # more than MAX_COLUMNS strategies: wrapped into rows
+    n_cols = math.ceil(len(strategies) / n_rows)
+    fig, axes = plt.subplots(n_rows, n_cols, figsize=(4.2 * n_cols, 4.2 * n_rows), sharey=True, squeeze=False)
+    for ax in axes.flat[len(strategies):]:
+        ax.set_visible(False)
+    for ax, s in zip(axes.flat, strategies, strict=False):
+        mine = [r for r in rows if r["strategy"] == s and r["status"] in ENDED]  # a failed run's last values: no
         medians = []
         for comp in sorted({r["record_id"] for r in mine}):
             pts = sorted((r["intensity"], r["x_base_mm"]) for r in mine
@@ -65,7 +71,8 @@ def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies
         ax.set_title(s)
         ax.set_xlabel("peak isolator displacement [mm]")
         ax.grid(alpha=0.3, which="both")
-    axes[0][0].set_ylabel(im_label(info))
+    for row in axes:
+        row[0].set_ylabel(im_label(info))
     axes[0][0].legend(fontsize=7, loc="lower right")
     fig.suptitle(f"{info.name}: IDA curves ({len({r['record_id'] for r in rows})} components)", fontsize=10)
     fig.tight_layout()
@@ -93,7 +100,7 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
             if fit.ok:
                 lo, hi = fit.band(x)
                 ax.fill_between(x, lo, hi, color=color, alpha=0.12, lw=0)
-                ax.plot(x, fit.probability(x), color=color, ls=STYLES.get(s, "-"),
+                ax.plot(x, fit.probability(x), color=color, ls=STYLES.get(s, ("-", "-.")[k // len(COLORS) % 2]),
                         label=f"{s}: θ={fit.theta:.3g} g, β={fit.beta:.2f}")
             else:
                 ax.plot([], [], "o", color=color, label=f"{s}: {fit.kind}")

@@ -19,7 +19,7 @@ from typing import Any
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
 from orchestration.case_study.case_jobs import RECORDED
-from orchestration.case_study.strategies import strategy_overrides
+from orchestration.case_study.strategies import CONTROLLER, check_strategy
 from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
 from orchestration.engine_hooks import plan_scenario
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
@@ -34,7 +34,9 @@ from orchestration.ida_study.suites import (
     windowed,
 )
 from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.fmu_description import read_description
 from orchestration.master.scenario import load_scenario
+from orchestration.master.yaml_source import load_tree
 
 # The IDA records the case study's variables and the floors' velocities (the residual drift needs them).
 IDA_RECORDED = (*RECORDED, "building.v_1", "building.v_2", "building.v_3")
@@ -67,6 +69,8 @@ class PreparedIda:
     planning_s: float = 0.0
     notes: list[str] = field(default_factory=list)
     storeys: dict[str, list[float]] | None = None  # a ShearBuilding's k, c, P/h per storey (residual drift)
+    gain_sets: dict[str, dict[str, Any]] = field(default_factory=dict)  # gain set -> gains document (those used)
+    unlimited: list[str] = field(default_factory=list)  # strategies whose controller FMU has no i_max
 
     def cleanup(self) -> None:
         shutil.rmtree(self.staging, ignore_errors=True)
@@ -127,27 +131,89 @@ def _suite(path: Path, spec: IdaSpec | None, raw: Any, problems: list[Problem], 
     return []
 
 
-def _strategies(loaded: LoadedIda, problems: list[Problem]) -> tuple[dict[str, tuple[str, ...]], dict | None]:
-    """Strategy -> scenario overrides, and the SOSM gains document (None without sosm or unreadable)."""
+def _gain_sets(loaded: LoadedIda, used: set[str | None], problems: list[Problem]) -> dict[str, dict[str, Any]]:
+    """Gain set (``sosm``, ``sosm-fig15``) the named strategies use -> its gains file's document (problems
+    appended: a missing or invalid file, gains tuned for another current limit)."""
     spec = loaded.spec
-    gains_doc = None
-    if "sosm" in spec.strategy_names:
+    docs: dict[str, dict[str, Any]] = {}
+    for gain_set, key in (("sosm", "gains"), ("sosm-fig15", "fig15_gains")):
+        if gain_set not in used:
+            continue
         try:
-            gains, gains_doc = read_gains(loaded.resolve(spec.gains, "gains"))
-            if abs(gains.i_max - spec.i_max) > 1e-12:
-                problems.append(Problem(f"gains tuned for i_max = {gains.i_max} A, the study uses {spec.i_max} A: "
-                                        "re-run the tuning", "gains"))
+            gains, docs[gain_set] = read_gains(loaded.resolve(getattr(spec, key), key))
         except ScenarioError as exc:
             problems += exc.problems
+            continue
+        if gain_set == "sosm" and abs(gains.i_max - spec.i_max) > 1e-12:
+            problems.append(Problem(f"gains tuned for i_max = {gains.i_max} A, the study uses {spec.i_max} A: "
+                                    "re-run the tuning", "gains"))
+        elif gain_set == "sosm-fig15" and gains.i_max > spec.i_max + 1e-12:
+            problems.append(Problem(f"the sosm-fig15 gains limit the controller to {gains.i_max} A, above the "
+                                    f"study's i_max = {spec.i_max} A", key))
+    return docs
+
+
+LIMIT = "controller.i_max="  # the study's override of the controller's current limit (its common overrides)
+
+
+def _has_current_limit(fmu: Path) -> bool:
+    """Whether a controller FMU has an ``i_max`` parameter (True if it cannot be read: the checks say why)."""
+    try:
+        description, _ = read_description(fmu, CONTROLLER)
+    except Exception:  # any unreadable FMU is reported by the engine's checks
+        return True
+    return "i_max" in description.variables
+
+
+def run_commons(common: tuple[str, ...], strategies: dict[str, tuple[str, ...]], unlimited: set[str]
+                ) -> dict[str, tuple[str, ...]]:
+    """Strategy -> the overrides every run of it gets first: ``common``, without ``controller.i_max`` for a
+    controller FMU that has no such parameter (a user's own: its current limit is its own business)."""
+    return {s: tuple(o for o in common if not (s in unlimited and o.startswith(LIMIT))) for s in strategies}
+
+
+def _strategies(loaded: LoadedIda, scenario: Path, common: tuple[str, ...], problems: list[Problem]
+                ) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, Any]], set[str]]:
+    """Strategy -> scenario overrides, gain set -> its gains document (those the strategies use), and the
+    strategies whose controller FMU has no ``i_max`` (:func:`run_commons`).
+
+    A named strategy is an entry of the strategy files, as in the case study
+    (:mod:`orchestration.case_study.strategies`): the controller FMU, its parameters, its gain set and its
+    connections become overrides of the system scenario. An entry with its own FMU or connections is checked
+    on the scenario first, so a missing FMU or a connection to a variable it lacks is a problem at the entry's
+    own key and line. ``{name, overrides}`` strategies are taken as written.
+    """
+    spec = loaded.spec
+    found = loaded.strategy_problems()
+    if found:
+        problems += found
+        return {}, {}, set()
+    named = {s: loaded.library[s] for s in spec.strategies if isinstance(s, str)}
+    docs = _gain_sets(loaded, {st.entry.gains for st in named.values()}, problems)
+    try:
+        connections = list(load_tree(scenario)[0].get("connections") or [])
+    except ScenarioError:  # an unreadable scenario: prepare_ida reports it (load_scenario)
+        return {}, docs, set()
     strategies: dict[str, tuple[str, ...]] = {}
+    unlimited = {s for s, st in named.items() if st.fmu_path is not None and st.fmu_path.is_file()
+                 and not _has_current_limit(st.fmu_path)}
     for s in spec.strategies:
-        if isinstance(s, str):
-            if s == "sosm" and gains_doc is None:
-                continue
-            strategies[s] = strategy_overrides(s, spec.i_max, gains_doc["gains"] if gains_doc else None, None)
-        else:
+        if not isinstance(s, str):
             strategies[s.name] = tuple(s.overrides)
-    return strategies, gains_doc
+            continue
+        st = named[s]
+        if st.entry.gains is not None and st.entry.gains not in docs:
+            continue  # its gains file is a problem already
+        gains = docs[st.entry.gains]["gains"] if st.entry.gains is not None else None
+        try:
+            if st.entry.fmu is not None or st.entry.connections is not None:
+                base = run_commons(common, {s: ()}, unlimited)[s]
+                check_strategy(st, scenario, (*base, "simulation.stop_time=1.0"), spec.i_max, gains, None)
+            strategies[s] = (*st.overrides(spec.i_max, gains, None), *st.connection_override(connections))
+        except ScenarioError as exc:  # a problem the entry did not write (the scenario's) still names the strategy
+            problems += [p if "(strategy " in p.message else Problem(f"{p.message} (strategy {s!r})", p.key, p.file,
+                                                                     p.line) for p in exc.problems]
+    return strategies, docs, unlimited
 
 
 def _stage(records: list[SuiteRecord], spec: IdaSpec, step: float, staging: Path) -> list[RecordComponent]:
@@ -166,8 +232,9 @@ def _stage(records: list[SuiteRecord], spec: IdaSpec, step: float, staging: Path
 
 
 def _plans(components: list[RecordComponent], strategies: dict[str, tuple[str, ...]], scenario: Path,
-           common: tuple[str, ...], problems: list[Problem]) -> dict[tuple[str, str], PortablePlan]:
-    """(component id, strategy) -> checked portable plan; a strategy's problems are reported once."""
+           commons: dict[str, tuple[str, ...]], problems: list[Problem]) -> dict[tuple[str, str], PortablePlan]:
+    """(component id, strategy) -> checked portable plan (``commons``: each strategy's first overrides);
+    a strategy's problems are reported once."""
     plans: dict[tuple[str, str], PortablePlan] = {}
     failing: set[str] = set()
     for c in components:
@@ -175,7 +242,7 @@ def _plans(components: list[RecordComponent], strategies: dict[str, tuple[str, .
             if name in failing:
                 continue
             try:
-                plan = plan_scenario(scenario, (*common, *extra, f"ground.record=!record {c.csv}",
+                plan = plan_scenario(scenario, (*commons[name], *extra, f"ground.record=!record {c.csv}",
                                                 f"simulation.stop_time={c.stop_time_s!r}", OUTPUTS_OVERRIDE))
             except ScenarioError as exc:
                 failing.add(name)
@@ -216,10 +283,10 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     records = _suite(path, spec, raw, problems, loaded.base_dir("suite", "folder") if loaded is not None else None)
     if spec is None or loaded is None:
         raise ScenarioError(problems)
-    strategies, gains_doc = _strategies(loaded, problems)
     scenario = loaded.resolve(spec.scenario, "scenario")
     common = (*spec.overrides, f"isolator.i_max={spec.i_max!r}", f"controller.i_max={spec.i_max!r}",
               f"ground.time_scale={spec.time_scale!r}")
+    strategies, gain_sets, unlimited = _strategies(loaded, scenario, common, problems)
     step = None
     try:
         step = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation.step
@@ -230,7 +297,7 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     staging = Path(tempfile.mkdtemp(prefix="mre-cosim-ida-"))
     try:
         components = _stage(records, spec, step, staging)
-        plans = _plans(components, strategies, scenario, common, problems)
+        plans = _plans(components, strategies, scenario, run_commons(common, strategies, unlimited), problems)
         if problems:
             raise ScenarioError(problems)
         first = plans[(components[0].rec.id, next(iter(strategies)))].plan
@@ -245,5 +312,6 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
         shutil.rmtree(staging, ignore_errors=True)
         raise ScenarioError(Problem(f"storey_heights gives {len(spec.storey_heights)} heights, the building has "
                                     f"{len(masses) - 1} storeys", "storey_heights"))
-    return PreparedIda(loaded, components, strategies, period, plans, masses, gains_doc, staging,
-                       time.perf_counter() - started, storeys=storey_constants(first))
+    return PreparedIda(loaded, components, strategies, period, plans, masses, gain_sets.get("sosm"), staging,
+                       time.perf_counter() - started, storeys=storey_constants(first),
+                       gain_sets=gain_sets, unlimited=sorted(unlimited))

@@ -76,7 +76,9 @@ def new_info(prepared: PreparedIda, pool: BatchPool, command: list[str], resumed
                                   (c.window.start, c.window.end), c.stop_time_s, c.im, c.rec.pga_g)
                     for c in prepared.components],
         batch={"scheduler": pool.scheduler, "workers": pool.n_workers, "dashboard": pool.dashboard},
-        provenance={**provenance(), "command": command})
+        provenance={**provenance(), "command": command},
+        extra={**({"gains_fig15": prepared.gain_sets["sosm-fig15"]} if "sosm-fig15" in prepared.gain_sets else {}),
+               **({"no_controller_i_max": prepared.unlimited} if prepared.unlimited else {})})
     if resumed is not None:
         info.started = resumed.started
         info.resumed = [*(resumed.resumed or []), utc_now()]

@@ -382,7 +382,10 @@ class _Reader:
         if rel.is_absolute() or ".." in rel.parts:
             return None
         path = self.dir.joinpath(*rel.parts)
-        return path if path.is_file() else None
+        try:
+            return path if path.is_file() else None
+        except (OSError, ValueError):  # a name too long for the file system (ENAMETOOLONG), a NUL: no member
+            return None
 
     def parse(self, member: str, schema_file: str, key: str) -> etree._Element | None:
         path = self.member(member)

@@ -157,7 +157,7 @@ class CouplingAlgorithm:
         watched_ports = set(watched)
         for port in [link.source for link in self.links] + list(watched):
             var = desc[port[0]].variables[port[1]]
-            if var.causality != "output":
+            if var.causality not in ("output", "local"):  # a local is watched only when a scenario names it
                 continue
             if var.fast_real:
                 self.slot.setdefault(port, len(self.slot))

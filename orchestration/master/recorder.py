@@ -4,11 +4,14 @@ Every type is recorded. Real (and FMI 3.0 Float64/Float32) columns are written a
 integer, enumeration and Boolean columns are held in the same float64 arrays (exact up to
 2^53, the algorithm refuses larger magnitudes) and written as plain integers (Booleans 0/1);
 String columns are kept as Python strings and written quoted (RFC 4180: ``"a ""b"", c"``).
-A run that records only Reals writes exactly the bytes it always did.
+A run that records only Reals writes exactly the bytes it always did; a long one has them written by a forked
+:class:`CsvProcess` while its units step (the same bytes).
 """
 
 from __future__ import annotations
 
+import json
+import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -17,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from mre_common.atomic_files import atomic_write
-from mre_common.env_settings import env_megabytes
+from mre_common.env_settings import env_megabytes, env_switch
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.graph import Port
+from orchestration.master.scenario import CSV_PROCESS_ENV
 from orchestration.master.unit import Variable
 
 SPILL_ENV = "MRE_COSIM_SPILL_MB"
@@ -180,26 +184,209 @@ def write_timeseries(path: Path, time: np.ndarray, names: Sequence[str], data: n
     if kinds is not None and any(kind != "real" for kind in kinds):
         _write_typed(Path(path), time, names, data, kinds, strings or {})
         return
-    from orchestration.master.native_stepper import csv_formatter
-
-    n_cols = 1 + len(names)
-    fast = csv_formatter()
-    row = ",".join(["%.12g"] * n_cols) + "\n"
+    rows = _RealRows(names)
 
     def write(f) -> None:  # bytes: the formatter's ASCII goes to the file as it is, not decoded and encoded again
-        f.write((",".join(["time", *names]) + "\n").encode())
-        part = np.empty((min(ROWS_PER_CHUNK, len(time)), n_cols))
-        for start in range(0, len(time), ROWS_PER_CHUNK):  # one block at a time: memory stays small
-            stop = min(start + ROWS_PER_CHUNK, len(time))
-            block = part[: stop - start]
-            block[:, 0] = time[start:stop]
-            block[:, 1:] = data[start:stop]
-            if fast is not None:
-                f.write(fast(block))
-            else:
-                f.write(((row * len(block)) % tuple(block.ravel().tolist())).encode("ascii"))
+        f.write(rows.header)
+        rows.write(f, time, data, 0, len(time))
 
     atomic_write(Path(path), write, binary=True)
+
+
+class _RealRows:
+    """Rows of Real columns as ``timeseries.csv`` lines: ``'%.12g'`` by the kernel's compiled formatter
+    (:func:`orchestration.master.native_stepper.csv_formatter`), or one Python format string per block without a C
+    compiler. Each row's bytes do not depend on the blocks it is written in."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        from orchestration.master.native_stepper import csv_formatter
+
+        self.header = (",".join(["time", *names]) + "\n").encode()
+        self.n_cols = 1 + len(names)
+        self.fast = csv_formatter()
+        self.row = ",".join(["%.12g"] * self.n_cols) + "\n"
+        self.part = np.empty((ROWS_PER_CHUNK, self.n_cols))
+
+    def write(self, f: Any, time: np.ndarray, data: np.ndarray, first: int, last: int) -> None:
+        """Rows ``first`` .. ``last - 1`` to the binary file ``f``, one block at a time (memory stays small)."""
+        for start in range(first, last, ROWS_PER_CHUNK):
+            stop = min(start + ROWS_PER_CHUNK, last)
+            block = self.part[: stop - start]
+            block[:, 0] = time[start:stop]
+            block[:, 1:] = data[start:stop]
+            if self.fast is not None:
+                f.write(self.fast(block))
+            else:
+                f.write(((self.row * len(block)) % tuple(block.ravel().tolist())).encode("ascii"))
+
+
+class CsvProcess:
+    """``timeseries.csv`` of Real columns written by a forked process while the units step.
+
+    :meth:`start` forks before the run (before any thread and before the FMUs load) a child
+    that shares the run's row storage (:class:`RowStorage` made ``shared``). :meth:`rows`
+    tells it how many rows are final (the executor's progress ticks): it formats them on
+    the machine's other CPU while this process steps. :meth:`finish` gives the final count
+    and :meth:`wait` returns once the file is in place (written atomically, the same bytes
+    as :func:`write_timeseries`), or raises :class:`OSError` naming what failed. The child
+    ignores SIGINT and SIGTERM (the run decides when to stop) and, without a final count
+    (:meth:`cancel`, or this process's death), removes its temporary file and exits.
+    """
+
+    MIN_ROWS = 20_000
+    """Fewer rows take less than a fork's worth of time to write: they are written in the run's own process."""
+
+    def __init__(self, pid: int, go: int, result: int) -> None:
+        self._pid, self._go, self._result = pid, go, result
+
+    @staticmethod
+    def wanted(rows: int, kinds: Sequence[str]) -> bool:
+        """Whether a run of ``rows`` rows with columns of these kinds gains from a CSV process: many rows, Real columns
+        only, another CPU, and a safe fork (Linux, one thread); ``MRE_COSIM_CSV_PROCESS=0`` turns it off (to compare
+        the two side by side: the file is the same)."""
+        import sys
+        import threading
+
+        return (env_switch(CSV_PROCESS_ENV, True) and rows >= CsvProcess.MIN_ROWS
+                and all(kind == "real" for kind in kinds) and (os.cpu_count() or 1) > 1
+                and sys.platform.startswith("linux") and threading.active_count() == 1)
+
+    @classmethod
+    def start(cls, path: Path, names: Sequence[str], storage: RowStorage, close: Sequence[int] = ()) -> CsvProcess:
+        """Fork the child that writes ``path`` from ``storage``; ``close``: file descriptors of this process the child
+        must not hold (other children's pipe ends, so that they see this process close them)."""
+        import sys
+
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()  # nothing buffered before the fork is written twice
+            except (AttributeError, OSError, ValueError):
+                pass
+        go_read, go_write = os.pipe()
+        result_read, result_write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns into the caller's code
+            code = 1
+            try:
+                for fd in (*close, go_write, result_read):
+                    try:
+                        os.close(fd)
+                    except OSError:
+                        pass
+                code = _csv_child(Path(path), names, storage, go_read, result_write)
+            finally:
+                os._exit(code)
+        os.close(go_read)
+        os.close(result_write)
+        return cls(pid, go_write, result_read)
+
+    def rows(self, count: int) -> None:
+        """The first ``count`` rows are recorded and will not change."""
+        self._send(f"{count}\n")
+
+    def finish(self, count: int) -> None:
+        """The run recorded ``count`` rows in all: the child writes the rest and puts the file in place."""
+        self._send(f"={count}\n")
+        self._close_go()
+
+    def wait(self) -> None:
+        """Once the file is in place; :class:`OSError` if the child could not write it (or died)."""
+        self._close_go()
+        chunks = []
+        while chunk := os.read(self._result, 65536):
+            chunks.append(chunk)
+        status = self._reap()
+        try:
+            answer = json.loads(b"".join(chunks) or b"null")
+        except ValueError:
+            answer = None
+        if not isinstance(answer, dict):
+            reason = (f"killed by signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status)
+                      else f"exit code {os.WEXITSTATUS(status)}")
+            raise OSError(f"the process writing it ended without an answer ({reason})")
+        if "error" in answer:
+            raise OSError(answer["error"])
+
+    def cancel(self) -> None:
+        """No file: the child removes its temporary file and exits."""
+        self._close_go()
+        self._reap()
+
+    def __del__(self) -> None:  # dropped without finish and wait (an exception in the run): the child exits
+        try:
+            self.cancel()
+        except OSError:
+            pass
+
+    def _send(self, text: str) -> None:
+        if self._go >= 0:
+            try:
+                os.write(self._go, text.encode())
+            except OSError:
+                pass  # a child that ended early (it could not write the file): wait() says why
+
+    def _close_go(self) -> None:
+        if self._go >= 0:
+            os.close(self._go)
+            self._go = -1
+
+    def _reap(self) -> int:
+        status = 0
+        if self._result >= 0:
+            os.close(self._result)
+            self._result = -1
+        if self._pid > 0:
+            status = os.waitpid(self._pid, 0)[1]
+            self._pid = 0
+        return status
+
+
+class _Cancelled(Exception):
+    """The run ended without a final row count: no file."""
+
+
+def _csv_child(path: Path, names: Sequence[str], storage: RowStorage, go: int, result: int) -> int:
+    """The CSV process: rows written as they are announced; answers ``{"ok": true}`` or ``{"error": text}``."""
+    import signal
+    import traceback
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+    def write(f: Any) -> None:
+        rows = _RealRows(names)
+        f.write(rows.header)
+        done, final, pending = 0, None, b""
+        while chunk := os.read(go, 4096):
+            pending += chunk
+            *lines, pending = pending.split(b"\n")
+            available = done
+            for line in lines:
+                if line.startswith(b"="):
+                    final = available = int(line[1:])
+                elif line:
+                    available = max(available, int(line))
+            if available > done:
+                rows.write(f, storage.time, storage.data, done, available)
+                done = available
+        if final is None:
+            raise _Cancelled
+        if final != done:
+            raise ValueError(f"{final} rows announced after {done} were written")
+
+    try:
+        atomic_write(path, write, binary=True)
+        answer: dict[str, Any] = {"ok": True}
+    except _Cancelled:
+        return 0
+    except OSError as exc:
+        answer = {"error": exc.strerror or str(exc)}
+    except BaseException as exc:  # a bug: reported to the run, which keeps its other results
+        answer = {"error": f"the CSV process failed ({traceback.format_exception_only(exc)[-1].strip()})"}
+    data = json.dumps(answer).encode()
+    while data:
+        data = data[os.write(result, data):]
+    return 0
 
 
 def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray, kinds: Sequence[str],

@@ -376,6 +376,11 @@ class PlotProcess:
         except OSError:
             pass
 
+    def parent_fds(self) -> list[int]:
+        """This process's ends of the children's pipes (a process forked later must close them: a child sees the
+        run close its pipe only when no other process holds it open)."""
+        return [fd for _, go, result in self._children for fd in (go, result) if fd >= 0]
+
     def _close_go(self) -> None:
         for _, go, _ in self._children:
             if go >= 0:

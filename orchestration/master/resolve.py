@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mre_common.env_settings import EnvSettingError, env_megabytes
+from mre_common.env_settings import EnvSettingError, env_megabytes, env_switch
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.binary_check import check_binary
 from orchestration.master.datapath import file_kind, find_data_file
@@ -39,6 +39,7 @@ from orchestration.master.report import PLACEHOLDER, ReportHook
 from orchestration.master.runfolder import sha256
 from orchestration.master.safe_archive import DEFAULT_UNPACKED_MB, UNPACKED_ENV
 from orchestration.master.scenario import (
+    CSV_PROCESS_ENV,
     MEMORY_ENV,
     LoadedScenario,
     ReportSpec,
@@ -113,6 +114,9 @@ def typed_parameter(var: Variable, value: Any, fmi_version: str = "2.0") -> tupl
         return value, f"{var.name!r} is an Enumeration with items {listed}, got {value!r} (give an item name or value)"
     if not _compatible(fmi_type, value):
         return value, f"{var.name!r} is {fmi_type}{unit}, got {value!r}"
+    if isinstance(value, str) and "\x00" in value:  # the C API's strings end at a NUL: it would be cut silently
+        return value, (f"{var.name!r} is {fmi_type}, {value!r} holds a NUL character (\\0) at position "
+                       f"{value.index(chr(0))}, which an FMU's C interface cannot pass")
     limits = value_range(fmi_type, fmi_version)
     if limits is not None and not limits[0] <= value <= limits[1]:
         return value, f"{var.name!r} is {fmi_type}, {value!r} is out of its range [{limits[0]}, {limits[1]}]"
@@ -145,6 +149,10 @@ def environment_problems() -> list[Problem]:
             env_megabytes(name, default, zero_ok=zero_ok)
         except EnvSettingError as exc:
             problems.append(Problem(str(exc)))
+    try:
+        env_switch(CSV_PROCESS_ENV, True)
+    except EnvSettingError as exc:
+        problems.append(Problem(str(exc)))
     return problems
 
 
@@ -290,7 +298,10 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         path = loaded.fmu_path(name)
         fmu_paths[name] = path
         looping = path.is_symlink() and not path.exists()
-        text = f"{path}: a symbolic link to nothing (dangling or looping)" if looping else _prepare(path, hooks)
+        if "\x00" in str(path):  # no file can have this name (and the OS calls would raise ValueError)
+            text: str | None = f"{str(path)!r} holds a NUL character (\\0): no file has such a name"
+        else:
+            text = f"{path}: a symbolic link to nothing (dangling or looping)" if looping else _prepare(path, hooks)
         if text is not None:
             problems.append(loaded.problem(text, "units", name, "fmu"))
             continue
@@ -358,7 +369,7 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         if desc is not None and hooks.parameter_check is not None and len(problems) == unit_problems:
             problems += _domain_problems(loaded, name, desc, fmu_paths[name], parameters[name], hooks)
 
-    def port(ref: VariableRef, causality: str, *key: Any) -> Port | None:
+    def port(ref: VariableRef, causality: str, *key: Any, also: tuple[str, ...] = ()) -> Port | None:
         desc = descriptions.get(ref.unit)
         if ref.unit not in sc.units:
             problems.append(loaded.problem(f"no unit named {ref.unit!r} (units: {', '.join(sc.units)})", *key))
@@ -369,8 +380,9 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         if var is None:
             problems.append(loaded.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}", *key))
             return None
-        if var.causality != causality:
-            problems.append(loaded.problem(f"{ref} is {var.causality}, expected {causality}", *key))
+        if var.causality != causality and var.causality not in also:
+            expected = " or ".join((causality, *also))
+            problems.append(loaded.problem(f"{ref} is {var.causality}, expected {expected}", *key))
             return None
         text = _not_exchanged(var)
         if text is not None:
@@ -427,7 +439,7 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs() if _not_exchanged(v) is None]
     else:
         for k, ref in enumerate(sc.outputs):
-            p = port(ref, "output", "outputs", k)
+            p = port(ref, "output", "outputs", k, also=("local",))  # a local is recorded only when named
             if p is not None and p not in recorded:
                 recorded.append(p)
     for key, ref in report.variables() if report is not None else ():

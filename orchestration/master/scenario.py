@@ -46,6 +46,7 @@ _PLAIN_NAME = re.compile(r"[^./\\\x00-\x1f\x7f][^/\\\x00-\x1f\x7f]{0,99}")
 MAX_STEPS = 10**12
 """Most communication steps a scenario may have (a guard against overflow; memory refuses far fewer)."""
 MEMORY_ENV = "MRE_COSIM_MAX_RESULT_MB"
+CSV_PROCESS_ENV = "MRE_COSIM_CSV_PROCESS"  # 1 (default): timeseries.csv written by a forked process; 0: by the run
 """Environment variable: the disk space a run's results may take [MiB] (default: the free space where they go)."""
 
 

@@ -21,7 +21,7 @@ from orchestration.master.errors import SimulationError
 from orchestration.master.execution import ExecutionResult, StopRequest, execute
 from orchestration.master.fmi_status import UNIT_LOGGER, LogRecord
 from orchestration.master.monitor import Monitor
-from orchestration.master.recorder import Recorder, RowStorage, column_kind, write_timeseries
+from orchestration.master.recorder import CsvProcess, Recorder, RowStorage, column_kind, write_timeseries
 from orchestration.master.report import PlotFailed, PlotProcess, RunDescription, caption, plot, report_summary
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import (
@@ -106,13 +106,13 @@ def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: 
         raise PlotFailed(f"the figures could not be drawn ({last})") from exc
 
 
-def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription) -> tuple[RowStorage | None,
-                                                                                      PlotProcess | None]:
+def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription,
+                  kinds: list[str]) -> tuple[RowStorage | None, PlotProcess | None]:
     """Row storage shared with a forked process that draws the figures when the run ends (:class:`PlotProcess`):
-    it imports matplotlib while the units step and draws while ``timeseries.csv`` is written. ``(None, None)``
+    it imports matplotlib while the units step and draws once they are done (while the summary is computed and
+    the CSV process writes its last rows). ``(None, None)``
     where that cannot be (no hook that draws, String columns, no safe fork): the figures are drawn in-process."""
     hook, sc = plan.report_hook, plan.loaded.scenario
-    kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
     if hook is None or hook.plot is None or "string" in kinds or not PlotProcess.available():
         return None, None
     storage = RowStorage(sc.simulation.n_steps + 1, len(plan.recorded), folder, shared=True)
@@ -142,7 +142,14 @@ def run_plan(
     sc = plan.loaded.scenario
     folder = new_run_folder(Path(sc.results.dir), sc.name, out)
     described = describe_run(plan)
-    storage, plotter = _plot_process(plan, folder, described) if plots else (None, None)  # before any thread
+    kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
+    storage, plotter = _plot_process(plan, folder, described, kinds) if plots else (None, None)  # before any thread
+    csv_process = None  # timeseries.csv written by a forked process while the units step (CsvProcess)
+    if CsvProcess.wanted(sc.simulation.n_steps + 1, kinds):
+        if storage is None:
+            storage = RowStorage(sc.simulation.n_steps + 1, len(plan.recorded), folder, shared=True)
+        csv_process = CsvProcess.start(folder / "timeseries.csv", [f"{u}.{v}" for u, v in plan.recorded], storage,
+                                       plotter.parent_fds() if plotter is not None else ())
     warnings: dict[str, int] = {name: 0 for name in plan.descriptions}
     messages: list[str] = []
     bar = None
@@ -167,6 +174,8 @@ def run_plan(
     def tick(k: int) -> None:
         if bar is not None:
             bar.update(k - bar.n)
+        if csv_process is not None:
+            csv_process.rows(recorder.count)
 
     units = plan.create_units(on_log)
     algorithm = plan.create_algorithm(units)
@@ -207,13 +216,16 @@ def run_plan(
             doc.update(complete=False, status=result.status)
         summary["error"] = str(result.error)
 
+    if csv_process is not None:
+        csv_process.finish(recorder.count)  # the last rows: the file is in place when wait() returns
     if plotter is not None and recorder.count <= 1:
         plotter.cancel()
     elif plotter is not None:
-        plotter.draw(recorder.count)  # the figures are drawn while the CSV is written
-    save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
-                                                    recorder.data[: recorder.count], recorder.kinds,
-                                                    recorder.strings))
+        plotter.draw(recorder.count)  # drawn while the summary and the manifest are made (and the CSV finished)
+    if csv_process is None:
+        save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
+                                                        recorder.data[: recorder.count], recorder.kinds,
+                                                        recorder.strings))
     if plots and plotter is None and recorder.count > 1:
         save("plots (*.png)", lambda: _plot_inline(recorder, plan, folder, described))
     run = run_id(folder)
@@ -250,6 +262,8 @@ def run_plan(
         "packages": package_versions(),
         "unit_messages": messages[-200:],
     }
+    if csv_process is not None:
+        save("timeseries.csv", csv_process.wait)
     if plotter is not None and recorder.count > 1:
         save("plots (*.png)", plotter.wait)
     if write_errors:
