@@ -41,22 +41,28 @@ def _run_in_subprocess(code: str) -> dict:
 FRESH = "MRE_TEST_FRESH_PROCESS"  # set in the interpreter a test runs again in
 
 
-@pytest.fixture
-def csv_process_here(request) -> bool:
-    """Whether this process may fork the CSV process (Linux, two CPUs, one thread); if only other tests' threads stand
-    in the way, the test runs again alone in a fresh interpreter, whose result is this test's, and this gives False."""
-    from orchestration.master.recorder import CsvProcess
-
-    if CsvProcess.wanted(CsvProcess.MIN_ROWS, ["real"]):
+def forked_here(request, available: bool) -> bool:
+    """Whether this test may fork here (``available``: the engine's own check, which needs Linux, two CPUs and one
+    thread); if only other tests' threads stand in the way, the test runs again alone in a fresh interpreter, whose
+    result is this test's, and this gives False (the caller returns)."""
+    if available:
         return True
     if (os.cpu_count() or 1) < 2 or not sys.platform.startswith("linux"):
-        pytest.skip("no CSV process on one CPU or off Linux")
+        pytest.skip("no forked writer on one CPU or off Linux")
     if os.environ.get(FRESH):
-        pytest.fail("a fresh interpreter has more than one thread: the CSV process is never used")
+        pytest.fail("a fresh interpreter has more than one thread: the forked processes are never used")
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", request.node.nodeid],
                           cwd=PROJECT, capture_output=True, text=True, check=False, env={**os.environ, FRESH: "1"})
     assert done.returncode == 0 and " passed" in done.stdout, done.stdout[-3000:]
     return False
+
+
+@pytest.fixture
+def csv_process_here(request) -> bool:
+    """:func:`forked_here` for the CSV process."""
+    from orchestration.master.recorder import CsvProcess
+
+    return forked_here(request, CsvProcess.wanted(CsvProcess.MIN_ROWS, ["real"]))
 
 
 _COMMAND = """
@@ -159,9 +165,9 @@ def _dies(spec, rec, run, figures) -> None:
 
 @pytest.mark.parametrize(("draw", "said"), [(_raises, "ZeroDivisionError: a bug in the figures"),
                                             (_dies, "killed by SIGKILL")])
-def test_a_plot_process_that_fails_costs_the_figures_only_and_the_run_says_so(tmp_path, draw, said):
-    if draw is _dies and not report.PlotProcess.available():
-        pytest.skip("threads run in this test process, so the figures are drawn inline: no plot process to kill")
+def test_a_plot_process_that_fails_costs_the_figures_only_and_the_run_says_so(request, tmp_path, draw, said):
+    if draw is _dies and not forked_here(request, report.PlotProcess.available()):
+        return
     plan = plan_scenario(KOBE, SHORT)
     hook = plan.report_hook
     plan = replace(plan, report_hook=ReportHook(hook.model, hook.summarize, draw))
@@ -177,7 +183,9 @@ def test_a_plot_process_that_fails_costs_the_figures_only_and_the_run_says_so(tm
     assert json.loads((folder / "manifest.json").read_text())["complete"] is False
 
 
-def test_a_cancelled_plot_process_exits_and_draws_nothing(tmp_path):
+def test_a_cancelled_plot_process_exits_and_draws_nothing(request, tmp_path):
+    if not forked_here(request, report.PlotProcess.available()):
+        return
     calls = tmp_path / "calls"
 
     def draw(rows: int, share: tuple[int, int]) -> list[Path]:
@@ -185,8 +193,7 @@ def test_a_cancelled_plot_process_exits_and_draws_nothing(tmp_path):
         return []
 
     plotter = report.PlotProcess.start(draw)
-    if plotter is None:
-        pytest.skip("no fork here (not Linux, or more than one thread)")
+    assert plotter is not None
     pids = [pid for pid, _, _ in plotter._children]
     plotter.cancel()
     assert not calls.exists()

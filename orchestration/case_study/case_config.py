@@ -16,11 +16,9 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, 
 
 from orchestration.case_study.robustness_config import RobustnessSpec
 from orchestration.case_study.strategies import (
-    SHIPPED,
     Strategy,
     StrategyEntry,
-    inline_strategies,
-    read_strategy_file,
+    strategy_library,
     unknown_strategies,
 )
 from orchestration.master.errors import Problem, ScenarioError
@@ -243,13 +241,9 @@ class LoadedStudy:
     def library(self) -> dict[str, Strategy]:
         """Every strategy the study may name: the shipped file, its strategy_files, its own definitions."""
         if self._library is None:
-            library = read_strategy_file(SHIPPED)
-            for k, f in enumerate(self.spec.strategy_files):
-                p = Path(f)
-                library.update(read_strategy_file(p if p.is_absolute() else self.base_dir("strategy_files", k) / p))
-            library.update(inline_strategies(self.spec.strategy_definitions, self.path, self.lines,
-                                             "strategy_definitions"))
-            self._library = library
+            files = [Path(f) if Path(f).is_absolute() else self.base_dir("strategy_files", k) / f
+                     for k, f in enumerate(self.spec.strategy_files)]
+            self._library = strategy_library(files, self.spec.strategy_definitions, self.path, self.lines)
         return self._library
 
     def base_dir(self, *key: Any) -> Path:

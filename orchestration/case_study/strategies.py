@@ -209,6 +209,17 @@ def inline_strategies(entries: dict[str, StrategyEntry], path: Path, lines: Line
     return _checked({name: Strategy(name, entry, path, lines, (key, name)) for name, entry in entries.items()})
 
 
+def strategy_library(files: list[Path], entries: dict[str, StrategyEntry], path: Path, lines: Lines,
+                     key: str = "strategy_definitions") -> dict[str, Strategy]:
+    """Every strategy a study may name: the shipped file, then ``files`` (in order), then the study's own
+    ``entries`` (under ``key``); a later definition of a name replaces an earlier one."""
+    library = read_strategy_file(SHIPPED)
+    for file in files:
+        library.update(read_strategy_file(file))
+    library.update(inline_strategies(entries, path, lines, key))
+    return library
+
+
 def builtin_strategies() -> dict[str, Strategy]:
     """The shipped strategies (``scenarios/strategies.yaml``)."""
     return read_strategy_file(SHIPPED)

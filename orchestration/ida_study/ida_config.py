@@ -22,11 +22,9 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, 
 from orchestration.case_study.case_config import apply_overrides
 from orchestration.case_study.strategies import (
     BEST,
-    SHIPPED,
     Strategy,
     StrategyEntry,
-    inline_strategies,
-    read_strategy_file,
+    strategy_library,
 )
 from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
 from orchestration.master.errors import Problem, ScenarioError
@@ -234,12 +232,8 @@ class LoadedIda:
         ScenarioError for a strategy file that is missing or malformed.
         """
         if self._library is None:
-            library = read_strategy_file(SHIPPED)
-            for k in range(len(self.spec.strategy_files)):
-                library.update(read_strategy_file(self.strategy_file(k)))
-            library.update(inline_strategies(self.spec.strategy_definitions, self.path, self.lines,
-                                             "strategy_definitions"))
-            self._library = library
+            files = [self.strategy_file(k) for k in range(len(self.spec.strategy_files))]
+            self._library = strategy_library(files, self.spec.strategy_definitions, self.path, self.lines)
         return self._library
 
     def strategy_problems(self) -> list[Problem]:
