@@ -54,6 +54,12 @@ def measure(scenario: str, overrides: list[str], folder: Path) -> dict[str, floa
     argv = [sys.executable, str(RUN_PY), str(SCENARIOS / scenario), "--out", str(folder), "--no-plots", "--quiet"]
     for item in overrides:
         argv += ["--set", item]
+    return measure_command(argv, folder)
+
+
+def measure_command(argv: list[str], folder: Path) -> dict[str, float]:
+    """``argv`` (a run writing ``folder``) as a whole command: wall [s], CPU [s] (user + system of the child) and
+    the stepping loop [s] (its ``summary.json``)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(argv, cwd=PROJECT, capture_output=True, text=True, check=False)

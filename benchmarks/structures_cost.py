@@ -27,21 +27,20 @@ wall time, and the stepping loop alone (``wall_time_s`` of summary.json). Prints
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import re
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
 import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from opensees_cost import measure_command
 
 PROJECT = Path(__file__).resolve().parent.parent
 RUN_PY = PROJECT / "orchestration" / "run.py"
@@ -126,17 +125,7 @@ def variants(opensees: bool, bouc_wen: bool, folder: Path) -> tuple[list[Variant
 
 def measure(variant: Variant, out: Path) -> dict[str, float]:
     """One whole command: CPU [s] (user + system of the child), wall [s], stepping loop [s]."""
-    argv = variant.argv(out)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    done = subprocess.run(argv, cwd=PROJECT, capture_output=True, text=True, check=False)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode != 0:
-        raise SystemExit(f"{' '.join(argv)} failed ({done.returncode}):\n{done.stderr[-2000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    loop = json.loads((out / "summary.json").read_text())["wall_time_s"]
-    return {"cpu": cpu, "wall": wall, "loop": loop}
+    return measure_command(variant.argv(out), out)
 
 
 def load() -> str:
