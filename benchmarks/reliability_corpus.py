@@ -1484,6 +1484,56 @@ def new_unit_cases() -> list[Case]:
     return cases
 
 
+def session_input_cases() -> list[Case]:
+    """Hostile values of what the last round added: robustness variants (a study's ``robustness:`` section),
+    strategy entries in an IDA, ``outputs:`` naming FMI locals, ``MRE_COSIM_CSV_PROCESS``. Each must be exit 2
+    (refused before any run, nothing written)."""
+    cls = "new ways in: robustness, IDA strategies, locals"
+    one = ("records={elcentro: elcentro.yaml}", "strategies=[passive-off, sosm]",
+           "overrides=[simulation.stop_time=0.05]")
+    variant = ["{v: {scale: {building.m_1: .nan}}}", "{v: {scale: {building.m_1: .inf}}}",
+               "{v: {scale: {building.m_1: -1}}}", "{v: {scale: {building.m_1: 0}}}",
+               "{v: {scale: {building.m_1: abc}}}", "{v: {scale: {building.nothing: 1.2}}}",
+               "{v: {scale: {controller.m_1: 1.2}}}", "{v: {current_lag: -0.01}}", "{v: {current_lag: .nan}}",
+               "{v: {current_lag: .inf}}", "{v: {current_lag: [1]}}", "{v: {sensors: {delay: -1}}}",
+               "{v: {sensors: {delay: 1000000000}}}", "{v: {sensors: {delay: 1.5}}}",
+               "{v: {sensors: {seed: -1}}}", "{v: {sensors: {seed: 1e30}}}",
+               "{v: {sensors: {noise_rms: {building.x_0: .nan}}}}",
+               "{v: {sensors: {noise_rms: {building.x_0: -1e-4}}}}",
+               "{v: {sensors: {noise_rms: {building.x_0: 1e300}}}}",
+               "{v: {plant: {isolator: /dev/zero}}}", "{v: {plant: {isolator: /tmp}}}",
+               "{v: {plant: {isolator: nowhere.fmu}}}", "{v: {plant: {controller: ../fmus/ConstantCurrent.fmu}}}",
+               "{v: {plant: {isolator: " + "é" * 200 + ".fmu}}}", "{v: {}}", "{v: {colour: red}}", "[1, 2]",
+               "{" + "é" * 200 + ": {current_lag: 0.01}}", "{nominal: {current_lag: 0.01}}"]
+    cases = [Case(cls, f"robustness.variants={s}"[:70], "study.py",
+                  [str(SC / "controller_robustness.yaml"), *(a for o in one for a in ("--set", o)),
+                   "--set", f"robustness.variants={s}", "--out", "out", "--quiet", "--workers", "1"])
+             for s in variant]
+    ida = ["strategies=[nope]", "strategies=[best-constant]", "strategies=[]",
+           "strategy_files=[/dev/zero]", "strategy_files=[nowhere.yaml]",
+           "strategy_definitions={x: {fmu: /tmp}}", "strategy_definitions={x: {parameters: {i_passive: .nan}}}",
+           "strategy_definitions={x: {fmu: ../fmus/ConstantCurrent.fmu, connections: "
+           "[{source: building.a_9, target: controller.x}]}}"]
+    cases += [Case(cls, f"ida: {s}"[:70], "ida.py", [str(SC / "ida_controllers.yaml"), "--set", s, "--out", "out",
+                                                    "--quiet", "--workers", "1"]) for s in ida]
+    outputs = ["outputs=[building.residual_drift_9]", "outputs=[building.k_1]", "outputs=[building.ag]",
+               "outputs=[nowhere.residual_drift_1]", "limits.max_abs={building.residual_drift_1: 1.0}",
+               "limits.max_abs={building.residual_drift_1: .nan}"]
+    cases += [Case(cls, s[:70], "run.py", [str(SC / "kobe_yielding.yaml"), "--set", SHORT, "--set", s,
+                                          "--out", "out", "--quiet", "--no-plots"]) for s in outputs]
+    cases += [Case(cls, f"MRE_COSIM_CSV_PROCESS={v!r}", "run.py",
+                   [str(SC / "elcentro.yaml"), "--set", SHORT, "--out", "out", "--quiet", "--no-plots"],
+                   env={"MRE_COSIM_CSV_PROCESS": v}) for v in ("yes", "2", "nan", "-1", "on", "\u00e9" * 50)]
+    for case in cases:
+        case.verify = _exit_2
+    return cases
+
+
+def _exit_2(work: Path, codes: list[int], err: str) -> list[str]:
+    """Refused before any run: exit 2 and one line naming what."""
+    return [] if codes == [2] else [f"exit {codes}, expected 2"]
+
+
 # -- issue 26, what was left: unused values, unlisted strategies, NUL in text, full disks, stuck workers ------------
 
 LEFT = "26/leftovers"
@@ -1674,7 +1724,8 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     _PACKAGE_LONG = export_ssp(plan_scenario(SC / "kobe.yaml"), base / "kobe.ssp")
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
-            *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *leftover_cases(base)]
+            *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
+            *leftover_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

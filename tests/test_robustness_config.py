@@ -111,3 +111,21 @@ def test_variants_the_plant_cannot_take_are_refused_before_any_run(tmp_path, cap
     assert "robustness.variants.ghost.scale.building.m_9" in err and "no Real parameter building.m_9" in err
     assert "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("fmu", "said"), [("é" * 200 + ".fmu", "bytes"), ("/dev/zero", "not a regular file"),
+                                           ("nowhere.fmu", "does not exist")])
+def test_a_plant_fmu_that_cannot_be_a_file_is_exit_2_naming_the_key(tmp_path, capsys, fmu, said):
+    """A name longer than the file system allows, a device or a missing file: exit 2, never an OSError."""
+    path, out = _study(tmp_path, f"""\
+        strategies: [passive-off, sosm]
+        records: {{elcentro: {PROJECT / 'scenarios' / 'elcentro.yaml'}}}
+        robustness:
+          variants:
+            swap:
+              plant: {{isolator: "{fmu}"}}
+        """)
+    assert main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "robustness.variants.swap.plant.isolator" in err and said in err and "Traceback" not in err
+    assert not out.exists()

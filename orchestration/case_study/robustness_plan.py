@@ -24,6 +24,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from mre_common.fs_limits import path_problem
 from orchestration.case_study.case_config import LoadedStudy
 from orchestration.case_study.robustness_config import VariantSpec
 from orchestration.case_study.strategies import CONTROLLER
@@ -90,6 +91,17 @@ def plant_overrides(study: LoadedStudy, name: str) -> tuple[str, ...]:
     return tuple(f"units.{u}.fmu={_path(study, f, *_key(name, 'plant', u))}" for u, f in spec.plant.items())
 
 
+def _fmu_file_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be a plant's FMU file (beyond the file system's limits, missing, not a file), or None."""
+    text = path_problem(path)
+    if text is not None:
+        return f"FMU file: {text}"
+    try:
+        return None if path.is_file() else f"FMU file {path} does not exist or is not a regular file"
+    except OSError as exc:
+        return f"FMU file {path}: {exc.strerror or exc}"
+
+
 class VariantPlanner:
     """Overrides of every run of a study's variants; nominal values and units read once per record and variant."""
 
@@ -120,9 +132,10 @@ class VariantPlanner:
             if u == CONTROLLER:
                 out.append(problem(study, "the controller cannot be swapped (a variant changes the plant, the "
                                           "controller keeps its nominal design)", name, "plant", u))
-            elif not _path(study, f, *_key(name, "plant", u)).is_file():
-                out.append(problem(study, f"FMU file {_path(study, f, *_key(name, 'plant', u))} does not exist",
-                                   name, "plant", u))
+            else:
+                text = _fmu_file_problem(_path(study, f, *_key(name, "plant", u)))
+                if text is not None:
+                    out.append(problem(study, text, name, "plant", u))
         for k in spec.scale:
             if _unit(k) == CONTROLLER:
                 out.append(problem(study, "scale applies to the plant only: the controller keeps its nominal "
