@@ -1,6 +1,6 @@
 """Reliability corpus (not part of the test suite): hostile input and faults through every command-line tool.
 
-``python benchmarks/reliability_corpus.py [--workers 2] [--only CLASS ...] [--report docs/reliability.md]``
+``python benchmarks/reliability_corpus.py [--workers 2] [--only CLASS ...] [--report FILE]``
 
 Builds several hundred cases of its own (bad scenarios, bad overrides, bad records, bad
 FMUs, hostile SSP packages, unusable output folders, full and read-only disks, signals
@@ -15,9 +15,9 @@ file that must survive), and classifies the outcome:
 * **data loss**: a file that existed before the case (a previous run, a "precious" file)
   is changed or gone.
 
-Writes the table of classes with counts and outcomes into the ``--report`` file (between
-the markers ``<!-- corpus:begin -->`` and ``<!-- corpus:end -->``) and, with ``--jsonl
-FILE``, every case's outcome as JSON lines. Full and read-only disks are tmpfs mounts
+Writes the table of classes with counts and outcomes into the ``--report`` file (by default
+``docs/reliability.md`` for a whole run, and no file for ``--only``; between the markers
+``<!-- corpus:begin -->`` and ``<!-- corpus:end -->``) and, with ``--jsonl FILE``, every case's outcome as JSON lines. Full and read-only disks are tmpfs mounts
 (root only); without root they are simulated (RLIMIT_FSIZE makes writes fail with EFBIG;
 a read-only folder is skipped).
 """
@@ -1765,7 +1765,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="cases run at a time")
     parser.add_argument("--only", nargs="*", default=[], help="run only the classes whose name contains one of these")
     parser.add_argument("--seed", type=int, default=13)
-    parser.add_argument("--report", type=Path, default=PROJECT / "docs" / "reliability.md")
+    parser.add_argument("--report", type=Path, default=None,
+                        help="file whose table is replaced (default: docs/reliability.md for a whole run; none "
+                             "with --only, so that a part never overwrites the whole run's table)")
     parser.add_argument("--jsonl", type=Path, default=None, help="also write every case's outcome here (JSON lines)")
     parser.add_argument("--keep", action="store_true", help="keep the case folders")
     args = parser.parse_args(argv)
@@ -1790,7 +1792,9 @@ def main(argv: list[str] | None = None) -> int:
                       flush=True)
         seconds = time.monotonic() - started
         command = "python benchmarks/reliability_corpus.py" + (f" --only {' '.join(args.only)}" if args.only else "")
-        write_report(results, args.report, command, seconds)
+        report = args.report if args.report is not None or args.only else PROJECT / "docs" / "reliability.md"
+        if report is not None:
+            write_report(results, report, command, seconds)
         if args.jsonl is not None:
             args.jsonl.write_text("".join(json.dumps(asdict(r)) + "\n" for r in results))
         clean = sum(r.clean for r in results)
