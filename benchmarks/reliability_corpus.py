@@ -17,7 +17,8 @@ file that must survive), and classifies the outcome:
 
 Writes the table of classes with counts and outcomes into the ``--report`` file (by default
 ``docs/reliability.md`` for a whole run, and no file for ``--only``; between the markers
-``<!-- corpus:begin -->`` and ``<!-- corpus:end -->``) and, with ``--jsonl FILE``, every case's outcome as JSON lines. Full and read-only disks are tmpfs mounts
+``<!-- corpus:begin -->`` and ``<!-- corpus:end -->``) and, with ``--jsonl FILE``, every
+case's outcome as JSON lines. Full and read-only disks are tmpfs mounts
 (root only); without root they are simulated (RLIMIT_FSIZE makes writes fail with EFBIG;
 a read-only folder is skipped).
 """
