@@ -5,7 +5,9 @@
 Builds several hundred cases of its own (bad scenarios, bad overrides, bad records, bad
 FMUs, hostile SSP packages, unusable output folders, full and read-only disks, signals
 during start-up and during a run, concurrent runs into one ``--out``, the other tools'
-inputs), runs each as a subprocess in a fresh folder (with its own temporary folder and a
+inputs; the ``35/`` classes: names that become paths, new-unit designs, study checks before the
+pool, model scripts that exit, loop or ``chdir``, hostile caches, a stopped or killed CSV process,
+unit-less outputs), runs each as a subprocess in a fresh folder (with its own temporary folder and a
 file that must survive), and classifies the outcome:
 
 * **clean**: one of the tool's documented exit codes (3, a bug, is not clean), no
@@ -1715,6 +1717,265 @@ def leftover_cases(base: Path) -> list[Case]:
     return out
 
 
+# -- issue 35: names that become paths, caches, user scripts, new-unit designs, the CSV process, units ----------------
+
+HARD = "35/"
+_MODEL = SC / "structures" / "dyke_linear.py"
+_SCRIPTS = {"os._exit(0)": "import os\nos._exit(0)\n", "sys.exit(0)": "import sys\nsys.exit(0)\n",
+            "never ends": "while True:\n    pass\n", "os.chdir('/')": "import os\nos.chdir('/')\n"}
+
+
+def _nothing_at(*paths: str) -> Callable[[Path, list[int], str], list[str]]:
+    """Verification: exit 2 and none of these absolute paths exists (a chdir'd output would land there)."""
+    def check(work: Path, codes: list[int], err: str) -> list[str]:
+        found = [p for p in paths if os.path.lexists(p)]
+        return ([f"exit {codes}, expected 2"] if codes != [2] else []) + ([f"wrote {found}"] if found else [])
+    return check
+
+
+def _exit_and_says(code: int, *words: str) -> Callable[[Path, list[int], str], list[str]]:
+    said = _says(*words)
+
+    def check(work: Path, codes: list[int], err: str) -> list[str]:
+        return ([] if codes == [code] else [f"exit {codes}, expected {code}"]) + said(work, codes, err)
+    return check
+
+
+def _cache_tmp(work: Path) -> Path:
+    """The case's temporary folder (its TMPDIR, beside ``work``)."""
+    return work.parent / "tmp"
+
+
+def _kernel_cache(kind: str) -> Callable[[Path], None]:
+    """``MRE_COSIM_CACHE`` (../tmp/mre-cosim-files-kernels from the case's folder) made hostile."""
+    def setup(work: Path) -> None:
+        cache = _cache_tmp(work) / "mre-cosim-files-kernels"
+        if kind == "a file":
+            cache.write_text("not a folder\n")
+        elif kind == "a symlink":
+            (_cache_tmp(work) / "mre-cosim-files-elsewhere").mkdir()
+            cache.symlink_to(_cache_tmp(work) / "mre-cosim-files-elsewhere")
+        elif kind == "open to all":
+            cache.mkdir()
+            cache.chmod(0o777)
+            (cache / "planted.so").write_bytes(b"\x7fELF planted")
+        elif kind == "a planted kernel":
+            from mre_common import c_compile
+            from orchestration.master import native_stepper as ns
+
+            cache.mkdir(mode=0o700)
+            key = c_compile.cache_key(ns.SOURCE, ns.CFLAGS, ("-lm",))
+            (cache / f"step_kernel-{key}.so").write_bytes(b"\x7fELF planted, truncated")
+    return setup
+
+
+def _kernel_untouched(work: Path, codes: list[int], err: str) -> list[str]:
+    """Exit 0, the cache named, nothing written through a link."""
+    reasons = [] if codes == [0] else [f"exit {codes}, expected 0"]
+    elsewhere = _cache_tmp(work) / "mre-cosim-files-elsewhere"
+    if elsewhere.is_dir() and any(elsewhere.iterdir()):
+        reasons.append(f"wrote through the symlink into {elsewhere}")
+    if "note: cache" not in err:
+        reasons.append("no note names the cache")
+    return reasons
+
+
+def _files_cache(kind: str) -> Callable[[Path], None]:
+    """The workers' per-user file and extraction cache in the case's temporary folder, made hostile."""
+    def setup(work: Path) -> None:
+        uid = os.getuid()
+        root = _cache_tmp(work) / f"mre-cosim-files-{uid}"
+        if kind == "a symlink":
+            (_cache_tmp(work) / "mre-cosim-files-elsewhere").mkdir()
+            root.symlink_to(_cache_tmp(work) / "mre-cosim-files-elsewhere")
+        elif kind == "a file":
+            root.write_text("not a folder\n")
+        elif kind == "planted extractions":
+            import hashlib
+
+            root.mkdir(mode=0o700)
+            for fmu in FMUS.glob("*.fmu"):
+                entry = root / "extracted" / hashlib.sha256(fmu.read_bytes()).hexdigest()
+                (entry / "binaries" / "linux64").mkdir(parents=True)
+                (entry / "sitecustomize.py").write_text(f"open({str(work / 'pwned.txt')!r}, 'w').write('ran')\n")
+                (entry / "binaries" / "linux64" / "x.so").write_bytes(b"\x7fELF planted")
+    return setup
+
+
+def _study_ran_clean(work: Path, codes: list[int], err: str) -> list[str]:
+    reasons = [] if codes == [0] else [f"exit {codes}, expected 0"]
+    if (work / "pwned.txt").exists():
+        reasons.append("planted code ran")
+    elsewhere = _cache_tmp(work) / "mre-cosim-files-elsewhere"
+    if elsewhere.is_dir() and any(elsewhere.iterdir()):
+        reasons.append(f"wrote through the symlink into {elsewhere}")
+    return reasons
+
+
+def _find_csv_child(work: Path, timeout: float = 60.0) -> int | None:
+    """The pid of a run's CSV process: a process in ``work`` whose parent is one too (the run forked it)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        in_work = {}
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    if os.readlink(f"/proc/{entry}/cwd") == str(work):
+                        stat_text = Path(f"/proc/{entry}/stat").read_text()
+                        in_work[int(entry)] = int(stat_text.rpartition(")")[2].split()[1])
+                except OSError:
+                    continue
+        for pid, ppid in in_work.items():
+            try:
+                forked = Path(f"/proc/{pid}/cmdline").read_bytes() == Path(f"/proc/{ppid}/cmdline").read_bytes()
+            except OSError:
+                continue
+            if ppid in in_work and forked:  # a fork of the run (not a compiler it started)
+                return pid
+        time.sleep(0.05)
+    return None
+
+
+def _signal_csv_child(sig: int) -> Callable[[Path], None]:
+    """Signal the run's CSV process once it has written some rows (its hidden temporary file holds 64 KiB)."""
+    def action(work: Path) -> None:
+        pid = _find_csv_child(work)
+        deadline = time.monotonic() + 60
+        while pid is not None and time.monotonic() < deadline:
+            if sum(p.stat().st_size for p in (work / "out").glob(".timeseries.csv.*.tmp")) > 65536:
+                break
+            time.sleep(0.05)
+        if pid is not None:
+            os.kill(pid, sig)
+            (work.parent / "signalled").write_text(str(pid))
+    return action
+
+
+def _csv_child_outcome(work: Path, codes: list[int], err: str) -> list[str]:
+    """The CSV process stopped or killed: exit 1, the rows kept as timeseries.csv.incomplete, nothing hidden."""
+    if not (work.parent / "signalled").exists():
+        return ["the CSV process was not found to signal (the case did not test anything)"]
+    reasons = [] if codes == [1] else [f"exit {codes}, expected 1"]
+    out = work / "out"
+    if not (out / "timeseries.csv.incomplete").is_file():
+        reasons.append("no timeseries.csv.incomplete")
+    hidden = [p.name for p in out.glob(".*.tmp")] if out.is_dir() else []
+    if hidden:
+        reasons.append(f"hidden partial files left: {hidden}")
+    if "timeseries.csv.incomplete" not in err:
+        reasons.append("the message does not name the rows kept")
+    return reasons
+
+
+def hardening_cases(base: Path) -> list[Case]:
+    """Names that become paths, caches that trust what they find, user scripts, new-unit designs found at t = 0,
+    a study refused after the pool started, the CSV process, unit-less outputs (issue 35's classes)."""
+    from orchestration.engine_hooks import plan_scenario
+    from orchestration.interop.ssp_package import export_ssp
+
+    cases: list[Case] = []
+    long, deep = "a" * 300, "/".join(["b" * 200] * 25)
+    one = ("records={elcentro: elcentro.yaml}", "overrides=[simulation.stop_time=0.05]", "reference={enabled: false}")
+    study = [str(SC / "case_study.yaml"), *(a for o in one for a in ("--set", o))]
+    defined = "strategy_definitions={{{name}: {{parameters: {{mode: passive, i_passive: 1.0}}}}}}"
+    names = {"strategy '../x'": [defined.format(name='"../x"'), 'strategies=[passive-off, "../x"]'],
+             "strategy '../../escaped'": [defined.format(name='"../../escaped"'),
+                                          'strategies=[passive-off, "../../escaped"]'],
+             "record id '../up'": ['records={"../up": elcentro.yaml}'],
+             "strategy of 250 bytes": [defined.format(name="s" * 250), f"strategies=[passive-off, {'s' * 250}]"],
+             "strategy of 100 emoji": [defined.format(name="\U0001f600" * 100),
+                                       f"strategies=[passive-off, {chr(0x1F600) * 100}]"],
+             }
+    cases += [Case(HARD + "names", f"study: {k}", "study.py",
+                   [*study, *(a for o in v for a in ("--set", o)), "--out", "out", "--quiet", "--workers", "1"],
+                   verify=_exit_2) for k, v in names.items()]
+    cases += [Case(HARD + "names", f"study: name {k} (no --out: it names the folder)", "study.py",
+                   [*study, "--set", f"name={v}", "--quiet", "--workers", "1"], out="studies", verify=_exit_2)
+              for k, v in (("of 300 bytes", long), ("'../x'", "../x"), ("'.hidden'", ".hidden"))]
+    cases += [Case(HARD + "names", "study: --out of 300 bytes", "study.py",
+                   [*study, "--out", f"{long}/x", "--quiet", "--workers", "1"], out=None, verify=_exit_2),
+              Case(HARD + "names", "run.py: --out of 300 bytes", "run.py", _elc(out=f"{long}/x"), out=None,
+                   verify=_exit_2),
+              Case(HARD + "names", "run.py: --out beyond PATH_MAX", "run.py", _elc(out=deep), out=None,
+                   verify=_exit_2),
+              Case(HARD + "names", "run.py: results.dir of 300 bytes", "run.py",
+                   [str(SC / "elcentro.yaml"), "--set", SHORT, "--set", f"results.dir={long}", "--quiet",
+                    "--no-plots"], out=None, verify=_exit_2)]
+    for pattern in ("a" * 300 + ".AT2", "../*.csv", "/etc/*"):
+        def ida_setup(d: Path, pattern: str = pattern) -> None:
+            spec = yaml.safe_load(_mini_ida_file(d).read_text())
+            spec["suite"]["patterns"] = [pattern]
+            (d / "ida.yaml").write_text(yaml.safe_dump(spec))
+        cases.append(Case(HARD + "names", f"ida.py: suite pattern {pattern[:20]!r}", "ida.py",
+                          ["ida.yaml", "--out", "out", "--quiet", "--workers", "1"], setup=ida_setup,
+                          verify=_exit_2))
+
+    designs = {"elcentro_clipped_optimal.yaml": [("controller.r=0", "controller.q_acc=0"),
+                                                 ("controller.s_ground=0", "controller.s_force=0")],
+               "elcentro_lyapunov.yaml": [("controller.s_ground=0", "controller.s_force=0")],
+               "nominal_plant_elcentro.yaml": [("coil.tau=-0.01",), ("coil.tau=-1e-9",)]}
+    for name, variants in designs.items():
+        for sets in variants:
+            unit, _, rest = sets[0].partition(".")
+            cases.append(Case(HARD + "new-unit designs", f"{name}: {' '.join(sets)}"[:70], "run.py",
+                              [str(SC / name), "--set", SHORT, *(a for x in sets for a in ("--set", x)), "--out",
+                               "out", "--quiet", "--no-plots"],
+                              verify=_exit_and_says(2, f"units.{unit}.parameters.{rest.partition('=')[0]}")))
+
+    def sensed(d: Path) -> None:
+        (d / "sensed.yaml").write_text(f"extends: {SC / 'nominal_plant_elcentro.yaml'}\nname: sensed\nunits:\n"
+                                       f"  sensors:\n    fmu: {FMUS / 'SensorChannels.fmu'}\n")
+    for setter, parameter in (("sensors.delay=-1", "delay"), ("sensors.rms_disp_1=-0.001", "rms_disp_1")):
+        cases.append(Case(HARD + "new-unit designs", f"SensorChannels: {setter}", "run.py",
+                          ["sensed.yaml", "--set", SHORT, "--set", setter, "--out", "out", "--quiet", "--no-plots"],
+                          setup=sensed, verify=_exit_and_says(2, f"units.sensors.parameters.{parameter}")))
+    cases.append(Case(HARD + "study configuration", "study: ${best_current} without best-constant", "study.py",
+                      [*study, "--set", "strategy_definitions={x: {parameters: {mode: passive, i_passive: "
+                       "'${best_current}'}}}", "--set", "strategies=[passive-off, x]", "--out", "out", "--quiet",
+                       "--workers", "1"], verify=_exit_and_says(2, "best-constant")))
+
+    scripts = base / "scripts"
+    scripts.mkdir(exist_ok=True)
+    for label, head in _SCRIPTS.items():
+        script = scripts / f"{len(list(scripts.iterdir()))}.py"
+        script.write_text(head + _MODEL.read_text())
+        verify = (_nothing_at("/out", "/out-corpus") if "chdir" in label else
+                  _exit_and_says(2, str(script)))
+        cases.append(Case(HARD + "user scripts", f"OpenSees script: {label}", "run.py",
+                          [str(SC / "elcentro_opensees.yaml"), "--set", SHORT, "--set",
+                           f"building.script=!data {script}", "--out", "out", "--quiet", "--no-plots"],
+                          env={"MRE_COSIM_SCRIPT_CHECK_TIMEOUT_S": "5"}, timeout=60, verify=verify))
+    package = export_ssp(plan_scenario(SC / "elcentro_opensees.yaml", (SHORT,)), base / "opensees.ssp")
+    cases.append(Case(HARD + "user scripts", "SSP package carrying a script: said on the console", "run.py",
+                      [str(package), "--out", "out", "--quiet", "--no-plots"],
+                      verify=_exit_and_says(0, "carries a script", "resources/dyke_linear.py")))
+
+    for kind in ("a file", "a symlink", "open to all", "a planted kernel"):
+        cases.append(Case(HARD + "caches", f"MRE_COSIM_CACHE is {kind}", "run.py", _elc(),
+                          setup=_kernel_cache(kind), env={"MRE_COSIM_CACHE": "../tmp/mre-cosim-files-kernels"},
+                          verify=_kernel_untouched))
+    for kind in ("a symlink", "a file", "planted extractions"):
+        cases.append(Case(HARD + "caches", f"study: the workers' file cache is {kind}", "study.py",
+                          [*study, "--set", "strategies=[passive-off]", "--out", "out", "--quiet", "--workers", "1"],
+                          setup=_files_cache(kind), timeout=300, verify=_study_ran_clean))
+
+    long_run = [str(SC / "kobe.yaml"), "--set", "simulation.stop_time=60", "--out", "out", "--quiet", "--no-plots"]
+    for name, sig in (("stopped (SIGSTOP)", signal.SIGSTOP), ("killed (SIGKILL)", signal.SIGKILL)):
+        cases.append(Case(HARD + "CSV process", f"the CSV process {name}", "run.py", long_run, timeout=240,
+                          during=(0.0, _signal_csv_child(sig)), verify=_csv_child_outcome))
+
+    def unitless(d: Path) -> None:
+        import re
+
+        copy_zip(FMUS / "SosmCurrentController.fmu", d / "unitless.fmu", lambda n, b: re.sub(
+            r'(name="i"[^>]*>\s*<Real[^>]*?) unit="A"', r"\1", b.decode(), count=1).encode()
+            if n == "modelDescription.xml" else b)
+    cases.append(Case(HARD + "units", "a unit-less output into an input in A: accepted, warned", "run.py",
+                      _elc("units.controller.fmu=unitless.fmu"), setup=unitless,
+                      verify=_exit_and_says(0, "warning: controller.i declares no unit", "isolator.i in A")))
+    return cases
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -1726,7 +1987,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
             *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
-            *leftover_cases(base)]
+            *leftover_cases(base), *hardening_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

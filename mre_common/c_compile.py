@@ -6,6 +6,9 @@ keeps the resulting shared library in a cache folder (``$MRE_COSIM_CACHE``, defa
 ``~/.cache/mre-cosim``) under a name holding a hash of the source, the compiler's name and
 every flag, so it is compiled once and rebuilt when any of them changes; the library is
 compiled under a temporary name and renamed, so a concurrent process sees it whole or not at all.
+The folder must be this user's private one (:mod:`mre_common.private_cache`: mode 0700, owned,
+not a symlink; else a folder of the process's own is used, with a note), and a library is loaded
+only if it has the SHA-256 written beside it when it was compiled (else compiled again, noted).
 """
 
 from __future__ import annotations
@@ -16,6 +19,9 @@ import subprocess
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+
+from mre_common.atomic_files import atomic_write_text
+from mre_common.private_cache import fallback_folder, file_sha256, note, remove_entry, trusted_folder
 
 CACHE_ENV = "MRE_COSIM_CACHE"
 """Environment variable naming the cache folder of compiled libraries."""
@@ -92,16 +98,47 @@ def compile_cached(source: str | os.PathLike[str], flags: Sequence[str], libs: S
     source = Path(source)
     compiler = compiler or compiler_name()
     stem = name or source.stem
-    target = Path(folder) if folder is not None else cache_dir()
-    target = target / f"{stem}-{cache_key(source, flags, libs, compiler)}.so"
-    if target.exists():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, partial = tempfile.mkstemp(prefix=f".{stem}.", suffix=".so", dir=target.parent)
+    root = trusted_folder(Path(folder) if folder is not None else cache_dir())
+    target = root / f"{stem}-{cache_key(source, flags, libs, compiler)}.so"
+    if os.path.lexists(target):
+        problem = _library_problem(target)
+        if problem is None:
+            return target
+        note(root, f"{target.name} {problem}: compiling it again")
+        remove_entry(target)
+    try:
+        fd, partial = tempfile.mkstemp(prefix=f".{stem}.", suffix=".so", dir=root)
+    except OSError as exc:  # a read-only or full cache: compiled where this process may (noted)
+        root = fallback_folder(root, f"cannot be written ({exc.strerror or exc})")
+        target = root / target.name
+        if target.exists():
+            return target
+        fd, partial = tempfile.mkstemp(prefix=f".{stem}.", suffix=".so", dir=root)
     os.close(fd)
     try:
         compile_c(source, partial, flags, libs, compiler)
+        digest = file_sha256(partial)
+        atomic_write_text(_digest_file(target), digest + "\n", mode=0o600)
         os.replace(partial, target)  # atomic: a concurrent process sees the whole library or none
     finally:
         Path(partial).unlink(missing_ok=True)
     return target
+
+
+def _digest_file(library: Path) -> Path:
+    """The file holding a cached library's SHA-256, written when it was compiled."""
+    return library.with_name(f".{library.name}.sha256")
+
+
+def _library_problem(library: Path) -> str | None:
+    """Why a cached library is not the one compiled there (a link, not a file, no or another SHA-256), or None."""
+    if library.is_symlink() or not library.is_file():
+        return "is not a regular file"
+    if not _digest_file(library).is_file():
+        return "has no SHA-256 recorded beside it (compiled by an older version?)"
+    try:
+        wanted = _digest_file(library).read_text(encoding="ascii").strip()
+        found = file_sha256(library)
+    except (OSError, UnicodeError) as exc:
+        return f"cannot be verified ({exc.strerror if isinstance(exc, OSError) and exc.strerror else exc})"
+    return None if wanted == found else "does not have the SHA-256 written when it was compiled"

@@ -18,7 +18,7 @@ DEFAULT_PATH_MAX = 4096  # bytes (Linux)
 def _existing(folder: Path) -> Path:
     """The nearest existing ancestor of ``folder`` (itself if it exists)."""
     folder = Path(os.path.abspath(folder))
-    while not folder.exists() and folder != folder.parent:
+    while not os.path.exists(folder) and folder != folder.parent:  # False for a name beyond the limits
         folder = folder.parent
     return folder
 
@@ -79,4 +79,15 @@ def path_problem(path: str | os.PathLike[str], reserve: int = 0) -> str | None:
     if total + reserve >= longest:
         return (f"{str(path)[:80]!r}... is {total} bytes long{f' (+{reserve} for files inside)' if reserve else ''}; "
                 f"the file system allows {longest - 1} bytes per path")
+    return None
+
+
+def plain_name_problem(name: object) -> str | None:
+    """Why ``name`` cannot be one entry of a folder (a separator, NUL, ``.``/``..``, a leading dot, empty), or
+    None. Its length is :func:`name_problem`'s."""
+    if not isinstance(name, str) or not name:
+        return f"{name!r} is not a name"
+    if any(c in name for c in "/\\\x00") or name.startswith(".") or any(ord(c) < 32 for c in name):
+        return (f"{name[:60]!r} must be a plain name (no '/', '\\', control characters, not starting with '.'): "
+                "it names a folder")
     return None

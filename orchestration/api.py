@@ -9,7 +9,9 @@
 the project's FMUs when they are missing or stale) and raises
 :class:`~orchestration.master.errors.ScenarioError` listing every problem.
 :func:`run` executes a checked plan, writes its run folder like ``run.py`` and returns
-:class:`Results`: the time series as numpy arrays (SI units) and the summary.
+:class:`Results`: the time series as numpy arrays (SI units) and the summary, with the run's two
+verdicts kept apart: ``results.valid`` / ``results.invalid_reasons`` (numerical validity) and
+``results.physical`` (the physical outcome).
 
 Unit messages (an FMU's warnings and errors) are not printed: they go to the standard
 :mod:`logging` logger ``"mre_cosim.units"`` as ``[unit] status: message`` (a unit's first 20
@@ -99,6 +101,24 @@ class Results(Mapping[str, np.ndarray]):
     @property
     def complete(self) -> bool:
         return self.status == "complete"
+
+    @property
+    def valid(self) -> bool | None:
+        """Numerical validity (summary.json's ``valid``): False when the energy balance does not close, the
+        coupling's energy error is above the tolerance, a value is not finite, or the step did not converge
+        where that was checked. A complete run may be invalid: its numbers are not to be ranked."""
+        return self.summary.get("valid")
+
+    @property
+    def invalid_reasons(self) -> list[str]:
+        """Why the run is numerically invalid (empty when it is valid)."""
+        return list(self.summary.get("invalid_reasons") or [])
+
+    @property
+    def physical(self) -> dict[str, Any]:
+        """The physical outcome, a result and not a defect (summary.json's ``physical``: time beyond the
+        isolator's identified range and at its device limit, peak force), where the report gives one."""
+        return dict(self.summary.get("physical") or {})
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:

@@ -9,6 +9,7 @@ Installed by ``pip install -e .`` as a ``[project.scripts]`` entry.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import sys
 from collections.abc import Sequence
@@ -37,7 +38,8 @@ def usage() -> str:
     lines = [f"usage: {PROG} TOOL [ARGS...]", "",
              "Semi-active seismic isolation by co-simulation: the project's command-line tools.", "", "tools:"]
     lines += [f"  {name:<{width}}  {text}" for name, (_, text) in TOOLS.items()]
-    lines += ["", f"'{PROG} TOOL --help' shows a tool's arguments and exit codes (the tool's own)."]
+    lines += ["", f"'{PROG} TOOL --help' shows a tool's arguments and exit codes (the tool's own);",
+              f"'{PROG} --version' the version."]
     return "\n".join(lines)
 
 
@@ -52,8 +54,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args and args[0] in ("-h", "--help"):
         print(usage())
         return 0
+    if args and args[0] in ("-V", "--version"):
+        from orchestration.provenance import package_version
+
+        print(f"{PROG} {package_version()}")
+        return 0
     if not args or args[0] not in TOOLS:
         what = f"unknown tool {args[0]!r}" if args else "no tool given"
+        close = difflib.get_close_matches(args[0], TOOLS, n=1) if args else []
+        if close:
+            what += f"; did you mean {close[0]!r}?"
         print(f"{usage()}\n\n{PROG}: error: {what} (choose from {', '.join(TOOLS)})", file=sys.stderr)
         return EXIT_USAGE
     if argv is None:  # the console command: Ctrl-C while the tool's modules import is one line and exit 130

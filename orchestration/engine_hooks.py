@@ -103,7 +103,30 @@ def resolve_scenario(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), b
 
     ``build=False`` builds no FMU (a missing one is a problem like any other).
     """
-    return resolve(loaded, data_dirs, HOOKS if build else CHECK_ONLY)
+    return scripts_as_data_files(resolve(loaded, data_dirs, HOOKS if build else CHECK_ONLY))
+
+
+def scripts_as_data_files(plan: SystemPlan) -> SystemPlan:
+    """A unit's script given as a plain path (not ``!data``) made one of the plan's data files: its absolute
+    path in the parameters (no later ``os.chdir`` moves it), its SHA-256 in the run's manifest, its bytes sent
+    to a study's workers like any data file (:data:`orchestration.parameter_domains.SCRIPT_PARAMETERS`)."""
+    from orchestration.master.runfolder import sha256
+    from orchestration.parameter_domains import script_parameters
+
+    for unit, desc in plan.descriptions.items():
+        for name in script_parameters(desc.model_identifier):
+            value = plan.parameters.get(unit, {}).get(name)
+            key = f"{unit}.{name}"
+            if not isinstance(value, str) or not value or key in plan.data_files:
+                continue
+            path = Path(os.path.abspath(value))
+            plan.parameters[unit][name] = str(path)
+            plan.data_files[key] = path
+            try:
+                plan.input_hashes[str(path)] = sha256(path)
+            except OSError:
+                plan.input_hashes[str(path)] = None
+    return plan
 
 
 def plan_scenario(path: Path | str, overrides: tuple[str, ...] = (), data_dirs: tuple[Path, ...] = ()) -> SystemPlan:

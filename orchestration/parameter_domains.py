@@ -49,6 +49,12 @@ def _isolator(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
     return parameter_problem(values)
 
 
+def _bouc_wen_isolator(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
+    from components.physics.bouc_wen_core import parameter_problem
+
+    return parameter_problem(values)
+
+
 def _clipped_optimal(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
     from components.physics.clipped_optimal_core import parameter_problem
 
@@ -79,17 +85,42 @@ def _opensees(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
     return parameter_problem(values, levels - 1 if levels else None)
 
 
+def _current_lag(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
+    from components.physics.current_lag_core import parameter_problem
+
+    return parameter_problem(values)
+
+
+def _sensor_channels(values: Mapping[str, Any], levels: int) -> tuple[str, str] | None:
+    from components.physics.sensor_channels_core import parameter_problem
+
+    return parameter_problem(values)
+
+
 CHECKS: dict[str, Check] = {
     "ShearBuilding": _shear_building,
     "MreIsolator": _isolator,
     "MreIsolatorC": _isolator,  # the plain-C unit implements the same law (tests/test_c_isolator.py)
+    "BoucWenIsolator": _bouc_wen_isolator,
     "ClippedOptimalCurrentController": _clipped_optimal,
     "LyapunovCurrentController": _lyapunov,
     "FrequencyCurrentController": _frequency,
     "SosmCurrentController": _sosm,
     "OpenSeesBuilding": _opensees,
+    "CurrentLag": _current_lag,
+    "SensorChannels": _sensor_channels,
 }
 _VARIANT = re.compile(r"(ShearBuilding|OpenSeesBuilding)\d+")  # storey-count variants (python -m components.build)
+
+
+SCRIPT_PARAMETERS: dict[str, tuple[str, ...]] = {"OpenSeesBuilding": ("script",)}
+"""Parameters whose value is a file of code the unit runs (kept as a data file of the plan, hashed)."""
+
+
+def script_parameters(model_identifier: str) -> tuple[str, ...]:
+    """The script parameters of a project unit (its storey-count variants too); () for any other FMU."""
+    variant = _VARIANT.fullmatch(model_identifier)
+    return SCRIPT_PARAMETERS.get(variant.group(1) if variant else model_identifier, ())
 
 
 def parameter_problems(description: UnitDescription, fmu_path: Path,
@@ -179,13 +210,13 @@ def _building_unused(description: UnitDescription, values: Mapping[str, Any]) ->
 def _isolator_unused(description: UnitDescription, values: Mapping[str, Any]) -> list[tuple[str, str]]:
     """The isolator's stop parameters without ``beyond_range: stop``: in their domain (the core's rule, with a
     valid range), and not set to anything but their declared start."""
-    from components.physics.mre_isolator_core import DEVICE_LIMIT_M, IDENTIFIED_RANGE_M, parameter_problem
+    from components.physics.mre_isolator_core import DEVICE_LIMIT_M, IDENTIFIED_RANGE_M, value_problem
 
     mode = str(values.get("beyond_range", "extrapolate"))
     if mode == "stop":
         return []
     forced = {**values, "beyond_range": "stop", "x_identified": IDENTIFIED_RANGE_M, "x_limit": DEVICE_LIMIT_M}
-    found = parameter_problem(forced)
+    found = value_problem(forced)  # each value in its domain; whether the stop out-stiffens the law only matters in use
     if found is not None and found[0] in ("k_stop", "c_stop"):
         return [(found[0], f"{found[1]} (checked although beyond_range: {mode} does not use it)")]
     for name in ("k_stop", "c_stop"):

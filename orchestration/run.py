@@ -26,7 +26,8 @@ import signal
 
 from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, run_tool
 
-EPILOG = ("exit codes: 0 success; 1 simulation failure or interruption (partial results written, marked "
+EPILOG = ("exit codes: 0 success (also for a complete run that is numerically invalid: its last lines say so); 1 "
+          "simulation failure or interruption (partial results written, marked "
           "incomplete); 2 scenario error (nothing written); " + EPILOG_COMMON + ". Relative paths are relative "
           "to the current folder.")
 UNIT_ERRORS_SHOWN = 5
@@ -44,6 +45,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="folder searched first for !record and !data files (repeatable)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--verify-step", action="store_true",
+                        help="run again with the plant's coupling step halved and the controller's period fixed; "
+                             "each peak's change goes into summary.json (step_convergence)")
     return parser.parse_args(argv)
 
 
@@ -80,10 +84,16 @@ def _run(argv: list[str] | None) -> int:
         cleanup = getattr(plan.loaded, "cleanup", None)  # an SSP package's extracted files
         if cleanup is not None:
             cleanup()
+    if args.verify_step and outcome.result.complete:
+        from orchestration.step_check import verify_step
+
+        verify_step(args.scenario, tuple(args.overrides), tuple(args.data_dirs), plan, outcome, not args.quiet)
     warnings = sum(outcome.summary.get("unit_warnings", {}).values())
     if outcome.result.complete:
         print(f"run complete: {outcome.folder} ({warnings} unit warning{'s' if warnings != 1 else ''})")
+        print(*verdict_lines(outcome.summary), sep="\n")
         return EXIT_OK
+    print(*verdict_lines(outcome.summary), sep="\n")
     print(f"run {outcome.result.status}: {outcome.result.error}", file=sys.stderr)
     said = str(outcome.result.error)
     errors = [m for m in unit_errors(outcome.folder) if m.split(": ", 1)[-1] not in said]
@@ -91,6 +101,42 @@ def _run(argv: list[str] | None) -> int:
         print("the units said:", *(f"  {m}" for m in errors), sep="\n", file=sys.stderr)
     print(f"{results_note(outcome.folder)}: {outcome.folder}", file=sys.stderr)
     return EXIT_FAILED
+
+
+def verdict_lines(summary: dict) -> list[str]:
+    """The run's two verdicts, kept apart: numerical validity (``valid``, ``invalid_reasons``) and, where the
+    application's report gives one, the physical outcome (a result, not a defect)."""
+    lines = []
+    if summary.get("valid") is False:
+        reasons = summary.get("invalid_reasons") or []
+        lines.append("numerically INVALID (its numbers are not to be ranked or trusted): " + "; ".join(reasons))
+    elif summary.get("valid"):
+        energy = summary.get("energy") or {}
+        detail = ""
+        if energy.get("checked"):
+            parts = [f"residual {100 * abs(energy.get('max_residual_fraction') or 0):.2g} %"]
+            if energy.get("max_coupling_error_fraction") is not None:
+                parts.append(f"coupling energy error {100 * energy['max_coupling_error_fraction']:.2g} %")
+            detail = f" (energy balance: {', '.join(parts)} of the input energy)"
+        elif energy:
+            detail = f" (energy {energy.get('note', 'not checked')})"
+        step = summary.get("step_convergence")
+        if step:
+            detail += f"; step: largest peak change {100 * step['largest_change']:.2g} % with the plant's step halved"
+        lines.append("numerically valid" + detail)
+    physical = summary.get("physical") or {}
+    if physical:
+        parts = []
+        if physical.get("peak_base_displacement_m") is not None:
+            parts.append(f"peak base displacement {1e3 * physical['peak_base_displacement_m']:.3g} mm, "
+                         f"{physical['time_beyond_identified_range_s']:.3g} s beyond the identified "
+                         f"±{1e3 * physical['identified_range_m']:g} mm, {physical['time_at_device_limit_s']:.3g} s "
+                         f"at the {1e3 * physical['device_limit_m']:g} mm device limit"
+                         + (" (its stop)" if physical.get("beyond_range") == "stop" else ""))
+        if physical.get("peak_isolator_force_N") is not None:
+            parts.append(f"peak isolator force {physical['peak_isolator_force_N'] / 1e3:.4g} kN")
+        lines.append("physical outcome: " + "; ".join(parts))
+    return lines
 
 
 def results_note(folder: Path) -> str:

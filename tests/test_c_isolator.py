@@ -10,6 +10,7 @@ C isolator (scenarios/elcentro_c_isolator.yaml) equals the Python-isolator run.
 
 from __future__ import annotations
 
+import ast
 import math
 import os
 import re
@@ -189,9 +190,10 @@ def test_force_beyond_the_range_equals_bounded_force_law(isolator, beyond_range)
     with -ffp-contract=off (no fused multiply-adds) and calling the same libm sinh/cosh as Python's math
     module, so every rounding is the same. (A reordered but equivalent formula would differ by a few ulps
     of the largest term; near the cancellation F ~ 0 that is no relative bound at all.)"""
-    params = {"beyond_range": beyond_range, "x_identified": 0.007, "x_limit": 0.012, "k_stop": 2.0e6,
+    # k_stop above the three devices' tangent beyond 7 mm at 2.5 A (2.44 MN/m): a stop stiffer than what it stops
+    params = {"beyond_range": beyond_range, "x_identified": 0.007, "x_limit": 0.012, "k_stop": 1.0e7,
               "c_stop": 9.0e3, "n_isolators": 3, "F0": 1.5, "i_max": 2.5}
-    law = bounded_force_law(TABLE2, 1.5, 3, beyond_range, 0.007, 0.012, 2.0e6, 9.0e3)
+    law = bounded_force_law(TABLE2, 1.5, 3, beyond_range, 0.007, 0.012, 1.0e7, 9.0e3)
     iso = _driven(isolator, params)
     rng = np.random.default_rng(24)
     beyond = stopped = 0
@@ -325,5 +327,58 @@ def test_elcentro_with_the_c_isolator_equals_the_python_isolator(elcentro, tmp_p
     a, b = c.recorder.data[: c.recorder.count], python.recorder.data[: python.recorder.count]
     # relative to each value; where a value crosses zero, to 1e-12 of its column's peak
     floor = 1e-12 * np.max(np.abs(b), axis=0)
-    relative = np.abs(a - b) / np.maximum(np.abs(b), floor)
+    with np.errstate(invalid="ignore"):  # 0 / 0 in a column that stays 0 (equal values: no error)
+        relative = np.where(a == b, 0.0, np.abs(a - b) / np.maximum(np.abs(b), floor))
     assert np.all(np.isfinite(a)) and np.max(relative) <= 1e-12
+
+
+# -- the C unit held to the law's one module (mre_isolator_core) ----------------------------------------------
+
+
+def _c_expression(text: str) -> float:
+    """The value of a C constant expression of the fallback macros: a number, or numbers with + - * / ( )."""
+    tree = ast.parse(text.strip(), mode="eval")
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Expression | ast.BinOp | ast.UnaryOp | ast.Constant | ast.operator
+                          | ast.unaryop) or (isinstance(node, ast.Constant) and type(node.value) not in (int, float)):
+            raise AssertionError(f"not a plain C constant expression: {text!r}")
+    return eval(compile(tree, "<macro>", "eval"), {"__builtins__": {}})  # numbers and operators only
+
+
+def c_fallback_defaults() -> dict[str, float]:
+    """The defaults mre_isolator.c defines for compiling it alone (``#ifndef NAME / #define NAME value``)."""
+    pairs = re.findall(r"^#ifndef (DEFAULT_\w+)\n#define \1 (.+)$", cbuild.C_SOURCE.read_text(), flags=re.M)
+    return {name: _c_expression(value) for name, value in pairs}
+
+
+def test_the_c_source_s_own_defaults_are_the_law_module_s():
+    """mre_isolator.c keeps its Table 2 (and limits, stop) defaults for compiling alone: each equals, as a double,
+    the value the build feeds from components/physics/mre_isolator_core.py."""
+    fed = {v.macro: v.start for v in cbuild.variables() if v.macro is not None}
+    assert set(fed) >= {f"DEFAULT_{name.upper()}" for name in TABLE2.as_dict()}
+    own = c_fallback_defaults()
+    assert sorted(own) == sorted(fed)
+    assert {name: own[name] for name in fed} == {name: float(value) for name, value in fed.items()}
+
+
+def test_the_fallback_scan_reads_a_changed_default(monkeypatch, tmp_path):
+    changed = tmp_path / "mre_isolator.c"
+    changed.write_text(cbuild.C_SOURCE.read_text().replace("(5.8161 / 1e-3)", "(5.8162 / 1e-3)"))
+    monkeypatch.setattr(cbuild, "C_SOURCE", changed)
+    assert c_fallback_defaults()["DEFAULT_K0_0"] == 5.8162 / 1e-3 != TABLE2.k0_0
+
+
+def test_force_over_a_grid_equals_the_law_module(isolator):
+    """F over a grid of x (to the device limit, +-15 mm), v and i in [0, 3] A equals isolator_force, bit for bit."""
+    iso = _driven(isolator)
+    points = 0
+    try:
+        for x in np.linspace(-0.015, 0.015, 31):
+            for v in (-0.5, -0.05, 0.0, 0.05, 0.5):
+                for i in np.linspace(0.0, 3.0, 7):
+                    iso.set(x=float(x), v=v, i=float(i))
+                    assert iso.get("F")[0] == isolator_force(float(x), v, float(i), TABLE2, 0.0, 2), (x, v, i)
+                    points += 1
+    finally:
+        iso.close()
+    assert points == 31 * 5 * 7

@@ -48,6 +48,20 @@ def test_unknown_or_missing_tool_is_a_usage_error(capsys):
     assert "no tool given" in capsys.readouterr().err
 
 
+def test_version_is_the_installed_distributions(capsys):
+    from importlib import metadata
+
+    assert console.main(["--version"]) == 0
+    assert capsys.readouterr().out.split() == ["mre-cosim", metadata.version("mre-cosim")]
+
+
+def test_a_misspelt_tool_gets_a_suggestion(capsys):
+    assert console.main(["stuyd"]) == 2
+    assert "did you mean 'study'?" in capsys.readouterr().err
+    assert console.main(["zzzz"]) == 2
+    assert "did you mean" not in capsys.readouterr().err
+
+
 def test_bad_scenario_exits_2_like_run_py(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("units: [\n")  # not YAML

@@ -52,7 +52,7 @@ def test_fmu_ships_its_runtime_requirements(fmu_dir, name):
         assert 'canGetAndSetFMUstate="true"' in z.read("modelDescription.xml").decode()
 
 
-DERIVED = {"N": {"kg": 1, "m": 1, "s": -2}}
+DERIVED = {"N": {"kg": 1, "m": 1, "s": -2}, "J": {"kg": 1, "m": 2, "s": -2}}
 BASE = {"kg", "m", "s", "A", "K", "mol", "cd"}
 
 

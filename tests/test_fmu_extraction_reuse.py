@@ -100,3 +100,55 @@ def test_a_second_unit_of_one_fmu_gets_its_own_folder(tmp_path, monkeypatch):
     s4.freeLibrary()
     fmu_loading.release(d4)
     assert not Path(d4).exists()
+
+
+def _shared(tmp_path, monkeypatch, root: Path) -> tuple[Path, str]:
+    path = PROJECT / "fmus" / "SosmCurrentController.fmu"
+    if not path.is_file():
+        pytest.skip("FMUs not built (python -m components.build)")
+    monkeypatch.setattr(fmu_loading, "_SHARED_ROOT", None)
+    fmu_loading.share_extractions(root)
+    st = os.stat(path)
+    return path, fmu_loading._archive_sha256(str(path.resolve()), st.st_size, st.st_mtime_ns)
+
+
+def test_a_planted_or_damaged_extraction_is_never_used_and_made_again_with_a_note(tmp_path, monkeypatch, capsys):
+    """An extraction is used only if its files match the manifest written when it was extracted: a folder planted
+    under the archive's SHA-256 (no manifest), one with a changed or an extra file, is extracted again, noted."""
+    root = tmp_path / "x"
+    path, sha = _shared(tmp_path, monkeypatch, root)
+    first = Path(fmu_loading._shared_folder(path))
+    assert first == root / sha and (root.stat().st_mode & 0o777) == 0o700
+    library = next(first.rglob("*.so"))
+    good = library.read_bytes()
+    for damage in ("truncate", "extra", "planted"):
+        if damage == "truncate":
+            library.write_bytes(good[:100])
+        elif damage == "extra":
+            (first / "sitecustomize.py").write_text("import os; os.system('touch /tmp/pwned')")
+        else:
+            import shutil
+
+            shutil.rmtree(first)
+            (first / "binaries").mkdir(parents=True)
+            (first / "binaries" / "evil.so").write_bytes(b"\x7fELF planted")
+        again = Path(fmu_loading._shared_folder(path))
+        assert again == first and library.read_bytes() == good, damage
+        assert not (first / "sitecustomize.py").exists() and not (first / "binaries" / "evil.so").exists()
+        err = capsys.readouterr().err
+        assert f"note: cache {root}: extraction {sha[:16]}" in err and "extracting it again" in err, damage
+    fmu_loading.share_extractions(None)
+
+
+def test_an_extraction_root_that_is_a_symlink_or_open_to_others_is_not_used(tmp_path, monkeypatch, capsys):
+    """A pre-created symlink at the cache's place is not followed (the files land in a private folder of the
+    process's own), and the note names the cache."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    root = tmp_path / "x"
+    root.symlink_to(elsewhere)
+    path, _sha = _shared(tmp_path, monkeypatch, root)
+    used = Path(fmu_loading._shared_folder(path))
+    assert used.parent != root and not any(elsewhere.iterdir())
+    assert f"note: cache {root}: is a symbolic link (never followed)" in capsys.readouterr().err
+    fmu_loading.share_extractions(None)

@@ -76,7 +76,7 @@ def test_a_value_the_law_does_not_use_is_refused_at_its_key_and_line(scenario, o
     ("building.hysteresis=bouc-wen", "building.n_1=3.0"),  # used
     ("building.hysteresis=bilinear", "building.fy_1=4000.0", "building.b_1=0.1"),  # used
     ("building.p_delta=true", "building.h_1=3.0", "building.h_2=3.0", "building.h_3=3.0"),  # used
-    ("isolator.beyond_range=stop", "isolator.k_stop=1e6", "isolator.c_stop=100.0"),  # used
+    ("isolator.beyond_range=stop", "isolator.k_stop=1e8", "isolator.c_stop=100.0"),  # used
     ("building.n_1=2.0", "building.h_1=0.0", "isolator.k_stop=5e6"),  # unused, but the declared start: not "set"
 ])
 def test_a_used_value_or_the_declared_start_passes(overrides):

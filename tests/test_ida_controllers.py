@@ -243,6 +243,8 @@ def test_the_shipped_controller_ida_is_valid():
         assert list(prepared.strategies) == ["passive-off", "passive-on", "sosm", "clipped-optimal", "lyapunov",
                                              "frequency", "hold-1.5A"]
         assert prepared.unlimited == ["hold-1.5A"]  # ConstantCurrent.fmu has no i_max
-        assert all(pp.plan.parameters["isolator"]["beyond_range"] == "tangent" for pp in prepared.plans.values())
+        # the nominal plant (nominal_plant.yaml): the Bouc-Wen isolators behind the coil lag
+        assert all(pp.plan.descriptions["isolator"].model_identifier == "BoucWenIsolator"
+                   and "coil" in pp.plan.descriptions for pp in prepared.plans.values())
     finally:
         prepared.cleanup()

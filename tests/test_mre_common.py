@@ -74,8 +74,78 @@ def test_compile_cached_compiles_once_per_content_and_rebuilds_on_a_change(tmp_p
     assert ctypes.CDLL(str(changed)).answer() == 42
     other_flags = c_compile.compile_cached(source, (*flags, "-DX=1"), name="k", folder=tmp_path / "cache")
     assert other_flags != changed and len(calls) == 3
-    assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == sorted(
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir() if not p.name.endswith(".sha256")) == sorted(
         p.name for p in (first, changed, other_flags))  # no temporary file left
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir() if p.name.endswith(".sha256")) == sorted(
+        f".{p.name}.sha256" for p in (first, changed, other_flags))  # each library's digest beside it
+
+
+@needs_cc
+def test_compile_cached_rebuilds_a_damaged_or_replaced_library_and_names_the_cache(tmp_path, capsys):
+    source = tmp_path / "k.c"
+    source.write_text("int answer(void) { return 41; }\n")
+    flags = ("-shared", "-fPIC", "-O2")
+    cache = tmp_path / "cache"
+    first = c_compile.compile_cached(source, flags, name="k", folder=cache)
+    assert (cache.stat().st_mode & 0o777) == 0o700
+    good = first.read_bytes()
+    first.write_bytes(good[: len(good) // 2])  # truncated
+    again = c_compile.compile_cached(source, flags, name="k", folder=cache)
+    assert again == first and again.read_bytes() == good
+    assert f"note: cache {cache}" in capsys.readouterr().err
+    first.unlink()
+    first.symlink_to(tmp_path / "elsewhere.so")  # planted link: never followed, compiled again
+    (tmp_path / "elsewhere.so").write_bytes(b"not a library")
+    again = c_compile.compile_cached(source, flags, name="k", folder=cache)
+    assert not again.is_symlink() and again.read_bytes() == good
+    assert (tmp_path / "elsewhere.so").read_bytes() == b"not a library"
+
+
+def test_a_cache_folder_open_to_others_is_closed_a_link_or_a_file_is_not_used(tmp_path, capsys):
+    from mre_common.private_cache import CacheUnusable, private_folder, trusted_folder
+
+    assert (private_folder(tmp_path / "c").stat().st_mode & 0o777) == 0o700
+    (tmp_path / "open").mkdir()
+    (tmp_path / "open").chmod(0o777)
+    (tmp_path / "open" / "planted.so").write_bytes(b"x")
+    assert private_folder(tmp_path / "open") == tmp_path / "open"  # others could write into it: emptied, closed
+    assert list((tmp_path / "open").iterdir()) == [] and ((tmp_path / "open").stat().st_mode & 0o777) == 0o700
+    assert "others could write into it): emptied and made private" in capsys.readouterr().err
+    (tmp_path / "readable").mkdir(mode=0o755)
+    (tmp_path / "readable").chmod(0o755)
+    (tmp_path / "readable" / "kept.so").write_bytes(b"x")
+    private_folder(tmp_path / "readable")  # only readable by others (an older version's mode): closed, kept
+    assert [p.name for p in (tmp_path / "readable").iterdir()] == ["kept.so"]
+    (tmp_path / "link").symlink_to(tmp_path / "c")
+    (tmp_path / "file").write_text("x")
+    for name in ("link", "file"):
+        with pytest.raises(CacheUnusable, match=f"cache {tmp_path / name}"):
+            private_folder(tmp_path / name)
+        used = trusted_folder(tmp_path / name)
+        assert used != tmp_path / name and (used.stat().st_mode & 0o777) == 0o700
+        assert f"note: cache {tmp_path / name}" in capsys.readouterr().err
+        used.rmdir()
+
+
+def test_a_manifest_catches_a_changed_missing_extra_or_linked_file(tmp_path):
+    from mre_common.private_cache import manifest_problem, write_manifest
+
+    entry = tmp_path / "e"
+    (entry / "sub").mkdir(parents=True)
+    (entry / "a.so").write_bytes(b"library")
+    (entry / "sub" / "b.py").write_text("print(1)")
+    write_manifest(entry, "abc")
+    assert manifest_problem(entry, "abc") is None
+    assert "not from" in manifest_problem(entry, "other")
+    (entry / "a.so").write_bytes(b"librarX")
+    assert "a.so" in manifest_problem(entry, "abc")
+    (entry / "a.so").write_bytes(b"library")
+    (entry / "sub" / "c.py").write_text("import os")
+    assert "sub/c.py" in manifest_problem(entry, "abc")
+    (entry / "sub" / "c.py").unlink()
+    (entry / "sub" / "b.py").unlink()
+    (entry / "sub" / "b.py").symlink_to(tmp_path / "elsewhere.py")
+    assert "not a regular file" in manifest_problem(entry, "abc")
 
 
 @needs_cc
@@ -147,3 +217,20 @@ def test_a_megabyte_variable_in_its_domain_gives_bytes(monkeypatch):
     assert env_megabytes("MRE_COSIM_TEST_MB", 256) == 3 * 2**19
     monkeypatch.setenv("MRE_COSIM_TEST_MB", "0")
     assert env_megabytes("MRE_COSIM_TEST_MB", 256, zero_ok=True) == 0
+
+
+def test_an_own_file_or_link_at_a_cache_name_in_the_temporary_folder_is_replaced_not_followed(tmp_path, monkeypatch,
+                                                                                            capsys):
+    import tempfile
+
+    from mre_common.private_cache import private_folder
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    (tmp_path / "target").mkdir()
+    (tmp_path / "mre-cosim-files-x").symlink_to(tmp_path / "target")
+    (tmp_path / "mre-cosim-files-y").write_text("x")
+    for name in ("mre-cosim-files-x", "mre-cosim-files-y"):
+        folder = private_folder(tmp_path / name)
+        assert folder.is_dir() and not folder.is_symlink() and (folder.stat().st_mode & 0o777) == 0o700
+        assert f"note: cache {tmp_path / name}: was a" in capsys.readouterr().err
+    assert list((tmp_path / "target").iterdir()) == []

@@ -47,6 +47,14 @@ CASES = [
     ("elcentro_frequency", ("controller.window=1",), "controller", "window", "at least two steps"),
     ("elcentro_frequency", ("controller.m_2=0.0",), "controller", "m_2", "must be positive"),
     ("kobe", ("controller.lambda=0.0",), "controller", "lambda", "must be positive"),
+    # designs that cannot be made from values each in its own domain: found before any run, not at t = 0
+    ("elcentro_clipped_optimal", ("controller.r=0.0", "controller.q_acc=0.0"), "controller", "r",
+     "control weight must be positive"),
+    ("elcentro_clipped_optimal", ("controller.s_ground=0.0", "controller.s_force=0.0"), "controller", "s_ground",
+     "are both 0"),
+    ("elcentro_lyapunov", ("controller.s_ground=0.0", "controller.s_force=0.0"), "controller", "s_ground",
+     "are both 0"),
+    ("nominal_plant_elcentro", ("coil.tau=-0.01",), "coil", "tau", "must be >= 0 s"),
 ]
 
 
@@ -77,7 +85,9 @@ def test_the_shipped_scenarios_pass_the_check():
     for scenario in ("kobe_yielding", "elcentro_clipped_optimal", "elcentro_lyapunov", "elcentro_frequency",
                      "elcentro_c_isolator"):
         assert _problems(scenario) == [], scenario
-    assert _problems("kobe", ("isolator.beyond_range=stop", "building.hysteresis=bouc-wen")) == []
+    # the paper's law at 3 A is stiffer (6.57 MN/m past 8 mm) than the default 5 MN/m stop: a stop that stops it is set
+    stop = ("isolator.beyond_range=stop", "isolator.k_stop=1e7")
+    assert _problems("kobe", (*stop, "building.hysteresis=bouc-wen")) == []
 
 
 def test_a_value_from_a_file_names_that_file_and_line(tmp_path):
@@ -117,6 +127,7 @@ FMU_CASES = [
     ("ShearBuilding", {"p_delta": True, "h_1": 3.0, "h_2": -1.0, "h_3": 3.0}),
     ("MreIsolator", {"beyond_range": "stop", "k_stop": -1.0}),
     ("MreIsolatorC", {"beyond_range": "stop", "c_stop": -5.0}),
+    ("BoucWenIsolator", {"gamma_1": -2000.0}),
     ("ClippedOptimalCurrentController", {"q_drift": -1.0}),
     ("LyapunovCurrentController", {"q_acc": -2.0}),
     ("FrequencyCurrentController", {"window": 1}),
@@ -134,6 +145,8 @@ def test_the_fmu_itself_refuses_what_the_check_refuses(name, parameters, capfd):
     good = {k: v for k, v in parameters.items() if k in ("hysteresis", "beyond_range", "p_delta")}
     if good.get("p_delta"):
         good.update(h_1=3.0, h_2=3.0, h_3=3.0)
+    if good.get("beyond_range") == "stop":
+        good["k_stop"] = 1.0e7  # stiffer than the paper's law past 8 mm at 3 A (6.57 MN/m): a stop that stops it
     assert not _driven_fails(fmu, good)  # and accepts the same unit without the bad value
 
 
@@ -171,3 +184,30 @@ def test_cli_exit_2_names_unit_parameter_and_line_and_writes_nothing(tmp_path):
         in proc.stderr
     assert "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+def test_a_sensor_delay_out_of_its_domain_is_refused_before_any_run(tmp_path):
+    """SensorChannels: a delay of -1 step (or a fraction), a negative noise RMS: the unit and parameter named."""
+    scenario = tmp_path / "sensed.yaml"
+    scenario.write_text(f"extends: {SCENARIOS / 'nominal_plant_elcentro.yaml'}\nname: sensed\nunits:\n"
+                        f"  sensors:\n    fmu: {PROJECT / 'fmus' / 'SensorChannels.fmu'}\n")
+    assert _problems(scenario) == []
+    for setter, parameter, text in (("sensors.delay=-1", "delay", "whole number of communication steps"),
+                                    ("sensors.rms_disp_1=-0.001", "rms_disp_1", "must be >= 0")):
+        (problem,) = _problems(scenario, (setter,))
+        assert problem.key == f"units.sensors.parameters.{parameter}" and text in problem.message, problem
+
+
+def test_the_design_checks_agree_with_the_controllers_own_construction():
+    """The independent side of the design checks: the controller class itself fails on the values refused, and
+    builds on the shipped ones (so the check refuses nothing the unit could run)."""
+    from components.physics import clipped_optimal_core as co
+
+    values = {f"{n}_{j}": v for n, vs in (("m", (98.3, 98.3, 98.3, 98.3)), ("k", (0.0, 6.84e5, 6.84e5, 6.84e5)),
+                                          ("c", (0.0, 0.0, 0.0, 0.0))) for j, v in enumerate(vs)}
+    assert co.parameter_problem(values) is None
+    co.ClippedOptimalController(*co.controller_parts(values))
+    bad = {**values, "r": 0.0, "q_acc": 0.0}
+    assert co.parameter_problem(bad)[0] == "r"
+    with pytest.raises(ValueError, match="control weight"):
+        co.ClippedOptimalController(*co.controller_parts(bad))

@@ -158,6 +158,7 @@ def test_the_engines_summary_is_every_variables_peak_and_a_hook_cannot_replace_i
                           data=np.column_stack([data[:, 0], np.zeros(3), data[:, 1]]))
     hook = ReportHook(ReportSpec, summarize=lambda spec, rec, run: {"status": "mine", "variables": 0, "extra": 1})
     out = report_summary(rec, ReportSpec(), hook, RunDescription({}, {}), reserved={"status"})
-    assert out == {"extra": 1, "variables": {"a.x": {"max_abs": 3.0, "min": -3.0, "max": 2.0},
-                                             "b.y": {"max_abs": 5.0, "min": 1.0, "max": 5.0}}}
+    assert out == {"valid": True, "invalid_reasons": [], "extra": 1,
+                   "variables": {"a.x": {"max_abs": 3.0, "min": -3.0, "max": 2.0},
+                                 "b.y": {"max_abs": 5.0, "min": 1.0, "max": 5.0}}}
     assert report_summary(rec, ReportSpec(), None, RunDescription({}, {}))["variables"] == out["variables"]

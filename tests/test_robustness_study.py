@@ -96,3 +96,47 @@ def test_report_has_the_robustness_section(study):
     report = (folder / "report.md").read_text()
     assert "## Robustness" in report and "Worst degradation per strategy" in report
     assert "passive-off on the nominal plant" in report
+
+
+@pytest.fixture(scope="module")
+def nominal_study(tmp_path_factory):
+    """The shipped robustness file's coil-lag factor and the paper's law, on the nominal plant, 1.5 s of El Centro."""
+    tmp = tmp_path_factory.mktemp("robustness-nominal")
+    path = tmp / "tiny.yaml"
+    path.write_text(f"""\
+extends: {SCENARIOS / 'controller_robustness.yaml'}
+name: tiny_nominal_robustness
+strategies: [passive-off, sosm]
+overrides: [simulation.stop_time=1.5]
+workers: 2
+output: {tmp / 'studies'}
+""")
+    folder = tmp / "out"
+    assert main([str(path), "--set", f"records={{elcentro: {SCENARIOS / 'nominal_plant_elcentro.yaml'}}}",
+                 "--set", "robustness.variants={lag-x3: {scale: {coil.tau: 3.0}}, paper-law: {plant: {isolator: {fmu: "
+                 + str(PROJECT / "fmus" / "MreIsolator.fmu") + ", parameters: {n_isolators: 2}}}}}",
+                 "--out", str(folder), "--quiet"]) == 0
+    rows = list(csv.DictReader((folder / "robustness.csv").open()))
+    return folder, json.loads((folder / "study.json").read_text()), rows, tmp
+
+
+def test_lag_factor_and_papers_law_equal_runs_written_by_hand(nominal_study):
+    folder, doc, rows, tmp = nominal_study
+    nominal = {e["strategy"]: e for e in doc["runs"]}
+    base = [*doc["run_overrides"], *nominal["sosm"]["overrides"]]
+    by_hand = {"lag-x3": [f"coil.tau={3.0 * (1 / 50)!r}"],  # 3 x the nominal plant's tau = 1/eta, eta = 50 1/s
+               "paper-law": [f"units.isolator.fmu={PROJECT / 'fmus' / 'MreIsolator.fmu'}",
+                             'units.isolator.parameters={"n_isolators": 2}', "isolator.i_max=3.0"]}
+    variant_runs = {(e["strategy"], e["variant"]): e for e in doc["variant_runs"]}
+    for name, extra in by_hand.items():
+        out = tmp / f"direct-{name}"
+        run_scenario(SCENARIOS / "nominal_plant_elcentro.yaml", (*base, *extra, BENCHMARK_OUTPUTS_OVERRIDE), out,
+                     plots=False)
+        assert (out / "timeseries.csv").read_bytes() == (
+            folder / variant_runs[("sosm", name)]["folder"] / "timeseries.csv").read_bytes()
+    # a slower coil changes an SOSM run, not a constant 0 A; the paper's law changes both
+    assert _row(rows, "sosm", "lag-x3")["J5"] != _row(rows, "sosm", "nominal")["J5"]
+    assert _row(rows, "passive-off", "lag-x3")["J5"] == "1.0"
+    assert _row(rows, "passive-off", "paper-law")["J3"] != "1.0"
+    ts = read_timeseries(folder / nominal["sosm"]["folder"] / "timeseries.csv")
+    assert "coil.i" in ts and not (ts["coil.i"] == ts["controller.i"]).all()  # the device current lags the command

@@ -104,7 +104,15 @@ def test_no_delay_no_noise_is_exact_pass_through():
     ({"rms": [0.1], "delay": -1}, "delay must be a whole number"),
     ({"rms": [0.1], "delay": 1.5}, "delay must be a whole number"),
     ({"rms": [0.1], "seed": -3}, "seed must be an integer"),
+    ({"rms": [0.1], "seed": 2**31}, r"seed must be an integer in \[0, 2\^31 - 1\]"),  # the FMI Integer's range
+    ({"rms": [0.1], "seed": True}, "seed must be an integer"),
 ])
 def test_channels_refuse_bad_parameters(kwargs, match):
     with pytest.raises(ValueError, match=match):
         SensorChannels(**kwargs)
+
+
+def test_the_largest_seed_is_the_fmi_integers_and_the_studys():
+    from orchestration.case_study.robustness_config import MAX_SEED
+
+    assert SensorChannels([0.1], seed=MAX_SEED).seed == 2**31 - 1

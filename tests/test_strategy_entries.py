@@ -138,8 +138,8 @@ def test_tiny_benchmark_end_to_end(tmp_path: Path) -> None:
     assert code == 0
     with open(out / "criteria.csv") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == ["record", "strategy", *(f"J{k}" for k in range(1, 10)), "mean_current_A", "joule_A2s",
-                             "switching_rate_A_s"]
+    assert list(rows[0])[:14] == ["record", "strategy", *(f"J{k}" for k in range(1, 10)), "mean_current_A",
+                                  "joule_A2s", "switching_rate_A_s"]  # then the criteria's extra columns, if any
     assert {(r["record"], r["strategy"]) for r in rows} == {(r, s) for r in ("elcentro", "kobe")
                                                            for s in ("passive-off", "best-constant", "lyapunov")}
     with open(out / "peaks.csv") as f:

@@ -17,8 +17,9 @@ import yaml
 from components.physics.sosm_controller_core import SosmGains
 from components.physics.switching_controller_core import SwitchingLaw
 from orchestration.batch.runner import Job, run_jobs
-from orchestration.case_study.analysis import PEAK_COLUMNS, indices, run_metrics
+from orchestration.case_study.analysis import indices, run_metrics
 from orchestration.case_study.case_config import ObjectiveSpec, TuningSpec, load_study
+from orchestration.case_study.case_metrics import PEAK_TABLE_COLUMNS
 from orchestration.case_study.tuning import objective, peak_values, read_gains, run_overrides, system_setup, tune
 from orchestration.engine_hooks import plan_scenario
 from orchestration.inprocess import simulate_coupled
@@ -57,7 +58,7 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     assert not list(out.rglob(".*.tmp*")), "temporary files left behind"
 
     header, peaks = read_csv(out / "peaks.csv")
-    assert header == list(PEAK_COLUMNS)
+    assert header == list(PEAK_TABLE_COLUMNS)
     assert {(r["record"], r["strategy"]) for r in peaks} == {(r, s) for r in ("elcentro", "hachinohe")
                                                             for s in ("passive-off", "sosm", "sosm-fig15")}
     header, idx = read_csv(out / "indices.csv")

@@ -31,6 +31,7 @@ SI_UNITS: dict[str, dict[str, int] | None] = {
     "N": {"kg": 1, "m": 1, "s": -2},
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
+    "J": {"kg": 1, "m": 2, "s": -2},  # energy (the building's energy integrals)
     "N/A": {"kg": 1, "m": 1, "s": -2, "A": -1},
     "N/(m.A)": {"kg": 1, "s": -2, "A": -1},
     "N.s/(m.A)": {"kg": 1, "s": -1, "A": -1},

@@ -20,7 +20,9 @@ import yaml
 
 from components.identification.paper_tables import CURRENTS_A, PARAMS, TABLE1
 from components.physics.bouc_wen_core import BoucWenCurrentModel
-from components.physics.mre_isolator_core import GeneralizedCoefficients
+from components.physics.bouc_wen_core import device_problem as bouc_wen_device_problem
+from components.physics.mre_isolator_core import GeneralizedCoefficients, ParameterError
+from components.physics.mre_isolator_core import device_problem as hyperbolic_device_problem
 from mre_common.atomic_files import atomic_write_text
 
 LINEAR_IN_CURRENT = {
@@ -192,13 +194,24 @@ def write_parameter_file(path: str | os.PathLike, fit: GeneralizedFit, note: str
     atomic_write_text(path, text + yaml.safe_dump(doc, sort_keys=False))
 
 
-def load_parameter_file(path: str | os.PathLike) -> GeneralizedCoefficients | BoucWenCurrentModel:
-    """Read a file written by :func:`write_parameter_file` back into the SI core class."""
+def load_parameter_file(path: str | os.PathLike, i_max: float = 3.0) -> GeneralizedCoefficients | BoucWenCurrentModel:
+    """Read a file written by :func:`write_parameter_file` back into the SI core class.
+
+    GeneralizationError naming the file and the coefficient when the law is no device on [0, i_max] A up to
+    the device limit (the force does not rise with displacement somewhere; Bouc-Wen: beta + gamma <= 0):
+    the cores' ``device_problem``.
+    """
     doc = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     if not isinstance(doc, dict) or "parameters" not in doc or doc.get("model") not in LINEAR_IN_CURRENT:
         raise GeneralizationError(f"{path}: not a generalized coefficient file")
     cls = GeneralizedCoefficients if doc["model"] == "hyperbolic" else BoucWenCurrentModel
     try:
-        return cls(**{k: float(v) for k, v in doc["parameters"].items()})
-    except TypeError as exc:
+        model = cls(**{k: float(v) for k, v in doc["parameters"].items()})
+    except (TypeError, ValueError) as exc:
         raise GeneralizationError(f"{path}: {exc}") from None
+    check = hyperbolic_device_problem if doc["model"] == "hyperbolic" else bouc_wen_device_problem
+    try:
+        check(model, i_max, beyond_range="extrapolate")
+    except ParameterError as exc:
+        raise GeneralizationError(f"{path}: coefficient {exc.parameter}: {exc}") from None
+    return model

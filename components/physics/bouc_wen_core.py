@@ -28,9 +28,31 @@ FMU (scalars) and the identification (a whole swarm at once).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 import numpy as np
+
+try:  # a package module here, a bare module in an FMU
+    from .mre_isolator_core import (
+        BEYOND_RANGE,
+        CURRENT_MAX_A,
+        DEVICE_LIMIT_M,
+        IDENTIFIED_RANGE_M,
+        STOP_STIFFNESS,
+        ParameterError,
+        current_grid,
+    )
+except ImportError:
+    from mre_isolator_core import (
+        BEYOND_RANGE,
+        CURRENT_MAX_A,
+        DEVICE_LIMIT_M,
+        IDENTIFIED_RANGE_M,
+        STOP_STIFFNESS,
+        ParameterError,
+        current_grid,
+    )
 
 MM = 1e-3  # metres per millimetre
 DELTA_FIXED = 1.0 / MM  # delta fixed at 1 per millimetre, in 1/m
@@ -263,3 +285,112 @@ SYNTHETIC_DEFAULT_PAPER_UNITS: dict[str, float] = {
 }
 
 SYNTHETIC_DEFAULT = BoucWenCurrentModel.from_paper_units(**SYNTHETIC_DEFAULT_PAPER_UNITS)
+
+
+# Description and SI unit of each coefficient (the BoucWenIsolator FMU's variables).
+COEFFICIENT_DOCS: dict[str, tuple[str, str]] = {
+    "k_0": ("N/(m.A)", "stiffness k slope per ampere"),
+    "k_1": ("N/m", "stiffness k at 0 A"),
+    "c_0": ("N.s/(m.A)", "damping c slope per ampere"),
+    "c_1": ("N.s/m", "damping c at 0 A"),
+    "alpha_0": ("N/A", "hysteretic force scale alpha slope per ampere"),
+    "alpha_1": ("N", "hysteretic force scale alpha at 0 A"),
+    "beta_0": ("1/(m.A)", "Bouc-Wen beta slope per ampere"),
+    "beta_1": ("1/m", "Bouc-Wen beta at 0 A"),
+    "gamma_0": ("1/(m.A)", "Bouc-Wen gamma slope per ampere"),
+    "gamma_1": ("1/m", "Bouc-Wen gamma at 0 A"),
+    "delta": ("1/m", "Bouc-Wen delta (fixed at 1/mm in identification)"),
+    "n": ("1", "Bouc-Wen exponent n"),
+}
+
+BEYOND_RANGE_DEFAULT = "stop"
+"""The BoucWenIsolator's default beyond +-x_identified: its own continuation plus the stop at x_limit.
+
+Past the tested 8 mm the model needs no separate continuation: its elastic part k(i) x is linear and y
+is bounded by its envelope, so the force goes on along the post-yield slope k(i) (+ alpha dy/dx, which
+tends to 0 on the envelope), with no invented stiffening ('tangent' is therefore the same as
+'extrapolate' here). The data's trend supports that slope: Table 1's peak forces grow affinely with the
+amplitude (docs/identification.md, "Past the tested stroke"). 'stop' adds the Kelvin stop of
+mre_isolator_core.stop_contact at +-x_limit."""
+
+
+def _blame(prefix: str, model, i: float) -> str:
+    return f"{prefix}_1" if i == 0.0 or getattr(model, f"{prefix}_1") < 0.0 else f"{prefix}_0"
+
+
+def tangent_bounds(k, alpha, beta, gamma, delta) -> tuple[float, float]:
+    """Smallest and largest tangent stiffness dF/dx [N/m] of one device (Eq. 1-2) over every state inside the
+    envelope and both directions of motion, for n > 0 and beta + gamma > 0.
+
+    dF/dx = k + alpha dy/dx, dy/dx = delta - lam y: delta at y = 0, 0 when loading on the envelope and
+    2 delta gamma / (beta + gamma) when unloading from it, monotone in |y|^n in between.
+    """
+    rates = (delta, 0.0, 2.0 * delta * gamma / (beta + gamma))
+    values = [k + alpha * r for r in rates]
+    return min(values), max(values)
+
+
+def device_problem(model: BoucWenCurrentModel, i_max: float = CURRENT_MAX_A, n_isolators: int = 2,
+                   beyond_range: str = BEYOND_RANGE_DEFAULT, x_identified: float = IDENTIFIED_RANGE_M,
+                   x_limit: float = DEVICE_LIMIT_M, k_stop: float = STOP_STIFFNESS, c_stop: float = 0.0) -> None:
+    """ParameterError (naming the coefficient, with its unit) unless the law is a device on [0, i_max] A.
+
+    delta > 0 and n > 0 finite; beta + gamma > 0 at every current of ``current_grid`` (else there is no
+    hysteresis envelope); the force rises with displacement in every state (:func:`tangent_bounds` >= 0);
+    ``beyond_range`` one of BEYOND_RANGE; with ``stop``, x_limit > x_identified > 0, c_stop >= 0 and
+    k_stop above the device's largest tangent stiffness (a stop must be stiffer than what it stops).
+    """
+    if beyond_range not in BEYOND_RANGE:
+        raise ParameterError("beyond_range", f"beyond_range = {beyond_range!r} is not one of "
+                             f"{', '.join(map(repr, BEYOND_RANGE))}")
+    if not (math.isfinite(i_max) and i_max >= 0.0):
+        raise ParameterError("i_max", f"i_max = {i_max!r} A must be finite and >= 0")
+    for name in ("delta", "n"):
+        value = getattr(model, name)
+        if not (math.isfinite(value) and value > 0.0):
+            raise ParameterError(name, f"{name} = {value!r} {COEFFICIENT_DOCS[name][0]} must be finite and > 0")
+    stiffest = 0.0
+    for i in current_grid(i_max):
+        p = model.at_current(i)
+        if not p.beta + p.gamma > 0.0:
+            name = _blame("gamma" if p.gamma < 0.0 else "beta", model, i)
+            raise ParameterError(name, f"{name} = {getattr(model, name)!r} {COEFFICIENT_DOCS[name][0]}: "
+                                 f"beta + gamma = {p.beta + p.gamma:.4g} 1/m <= 0 at i = {i:.4g} A "
+                                 "(no hysteresis envelope)")
+        low, high = tangent_bounds(p.k, p.alpha, p.beta, p.gamma, p.delta)
+        if not low >= 0.0:
+            prefix = "k" if p.k < 0.0 else "alpha" if p.alpha < 0.0 else "gamma"
+            name = _blame(prefix, model, i)
+            raise ParameterError(name, f"{name} = {getattr(model, name)!r} {COEFFICIENT_DOCS[name][0]}: the force "
+                                 f"does not rise with displacement (tangent stiffness down to {n_isolators * low:.4g}"
+                                 f" N/m < 0 at i = {i:.4g} A)")
+        stiffest = max(stiffest, n_isolators * high)
+    if beyond_range == "stop":
+        if not x_identified > 0.0:
+            raise ParameterError("x_identified", f"x_identified = {x_identified!r} m must be > 0")
+        if not x_limit > x_identified:
+            raise ParameterError("x_limit", f"x_limit = {x_limit!r} m must exceed x_identified = {x_identified!r} m")
+        if not c_stop >= 0.0:
+            raise ParameterError("c_stop", f"c_stop = {c_stop!r} N.s/m must not be negative")
+        if not k_stop > stiffest:
+            raise ParameterError("k_stop", f"k_stop = {k_stop!r} N/m is not stiffer than the device "
+                                 f"({stiffest:.4g} N/m on [0, {i_max:g}] A): a stop must be stiffer than what it stops")
+
+
+def parameter_problem(values: Mapping[str, float | int | str]) -> tuple[str, str] | None:
+    """(parameter, message) for the first BoucWenIsolator parameter out of its domain, or None.
+
+    ``values``: the FMU's parameters by name (absent names take the FMU's defaults); the check the unit
+    makes when it initializes (:func:`device_problem`), before anything runs.
+    """
+    from_values = {name: values.get(name, getattr(SYNTHETIC_DEFAULT, name)) for name in COEFFICIENT_DOCS}
+    try:
+        model = BoucWenCurrentModel(**{name: float(v) for name, v in from_values.items()})
+        device_problem(model, float(values.get("i_max", CURRENT_MAX_A)), int(values.get("n_isolators", 2)),
+                       str(values.get("beyond_range", BEYOND_RANGE_DEFAULT)),
+                       float(values.get("x_identified", IDENTIFIED_RANGE_M)),
+                       float(values.get("x_limit", DEVICE_LIMIT_M)), float(values.get("k_stop", STOP_STIFFNESS)),
+                       float(values.get("c_stop", 0.0)))
+    except ParameterError as exc:
+        return exc.parameter, str(exc)
+    return None

@@ -51,7 +51,8 @@ class FrequencyDesign:
     """Design parameters.
 
     i_max [A], i_start [A] (held until the first window has filled), window [steps] (>= 2),
-    update_every [steps] (>= 1), f_lo, f_hi [Hz] the search band, x_lin [m] the secant
+    update_every [steps] (>= 1) (steps: the unit's own communication steps, ``units.NAME.step`` when set),
+    f_lo, f_hi [Hz] the search band, x_lin [m] the secant
     amplitude (0: tangent at 0), n_grid the currents of the precomputed grid (>= 2).
     """
 
@@ -168,5 +169,13 @@ def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
 
 
 def parameter_problem(values: Mapping[str, Any], n_levels: int = 4) -> tuple[str, str] | None:
-    """(parameter, message) for the first FMU parameter out of its domain, or None (a check before any run)."""
-    return plant_core.first_parameter_problem(controller_parts, values, n_levels)
+    """(parameter, message) for the first FMU parameter out of its domain, or a design that cannot be made from
+    them, or None (a check before any run)."""
+    found = plant_core.first_parameter_problem(controller_parts, values, n_levels)
+    if found is not None:
+        return found
+    try:
+        FrequencyController(*controller_parts(values, n_levels))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return "m_0", f"the controller's design (the building model m_j, k_j, c_j) fails: {exc}"
+    return None

@@ -8,8 +8,10 @@ Plant (the paper's Eq. 18-23, relative coordinates, levels 0 = base .. n = roof)
     M x'' + C x' + K x = -e_0 F - M 1 ag
 
 F [N] is the restoring force of the isolators (positive along x_0), ag [m/s^2] the ground
-acceleration; z = [x, x'] is the state. The isolator law is Eq. 17 with Table 2 (converted
-to SI once, below), per device F_d = c0(i) v + k0(i) x + alpha(i) sinh(beta(i) x).
+acceleration; z = [x, x'] is the state. The isolator law is Eq. 17 (Table 2 by default), per
+device F_d = c0(i) v + k0(i) x + alpha(i) sinh(beta(i) x): its functions and coefficients come
+from ``mre_isolator_core``, the building's defaults (Table 3) from ``dyke_building``; both travel
+in every FMU that carries this module.
 
 Linearisation of the isolators at a current i (used by the LQR, the Lyapunov matrix and
 the natural frequencies): the damping c0(i) is linear already and kept exactly; the spring
@@ -57,18 +59,20 @@ from typing import Any
 import numpy as np
 from scipy.linalg import eigh, expm, solve_continuous_are, solve_continuous_lyapunov
 
-MM = 1e-3  # metres per millimetre
+try:  # a package module here, bare modules in an FMU
+    from . import dyke_building as dyke
+    from . import mre_isolator_core as isolator_core
+except ImportError:
+    import dyke_building as dyke
+    import mre_isolator_core as isolator_core
 
-# Table 2 of the paper in its units (N/mm, N*s/mm, N, 1/mm); SI below.
-_TABLE2_PAPER = {"k0_0": 5.8161, "k0_1": 3.3431, "c0_0": 0.5767, "c0_1": 0.3396,
-                 "alpha_0": 4.9810, "alpha_1": 8.1100, "beta_0": 0.1322, "beta_1": 0.3463}
-_PER_MM = ("k0_0", "k0_1", "c0_0", "c0_1", "beta_0", "beta_1")
+_TABLE2 = isolator_core.TABLE2
 
-# Table 3 of the paper (Dyke et al. 1996 three-storey model) on a 98.3 kg base floor
-# (the project's assumption, as in the building unit).
-DYKE_MASSES = (98.3, 98.3, 98.3, 98.3)  # kg, levels 0 (base) .. 3
-DYKE_STIFFNESSES = (0.0, 516e3, 684e3, 684e3)  # N/m: k_0 ties the base to the ground
-DYKE_DAMPINGS = (0.0, 125.0, 50.0, 50.0)  # N*s/m
+# Table 3 of the paper (Dyke et al. 1996 three-storey model) on the assumed base floor, per level 0 (base) .. 3:
+# masses [kg], stiffnesses [N/m] and dampings [N*s/m] (k_0, c_0 tie the base to the ground).
+LEVEL_MASSES = (dyke.BASE_MASS, *dyke.DYKE_MASSES)
+LEVEL_STIFFNESSES = (dyke.BASE_STIFFNESS, *dyke.DYKE_STIFFNESSES)
+LEVEL_DAMPINGS = (dyke.BASE_DAMPING, *dyke.DYKE_DAMPINGS)
 
 
 class ParameterError(ValueError):
@@ -83,18 +87,9 @@ class EstimatorDiverged(ArithmeticError):
     """The state estimate is no longer finite (NaN or inf)."""
 
 
-def _sinh(z: float) -> float:
-    try:
-        return math.sinh(z)
-    except OverflowError:
-        return math.copysign(math.inf, z)
-
-
-def _cosh(z: float) -> float:
-    try:
-        return math.cosh(z)
-    except OverflowError:
-        return math.inf
+def _clipped_sinh(z: np.ndarray) -> np.ndarray:
+    """numpy's sinh with its argument clipped at +-700 (finite, ~5e303): changes nothing below |x| ~ 0.9 m."""
+    return np.sinh(np.clip(z, -700, 700))
 
 
 @dataclass(frozen=True)
@@ -102,18 +97,18 @@ class IsolatorLaw:
     """Eq. 17 of the paper for ``n_isolators`` identical devices, SI coefficients (Table 2 by default).
 
     k0_0 [N/(m A)], k0_1 [N/m], c0_0 [N s/(m A)], c0_1 [N s/m], alpha_0 [N/A], alpha_1 [N],
-    beta_0 [1/(m A)], beta_1 [1/m]. Kept here (not imported from the isolator's core) so that
-    the controller FMUs carry no module the isolator FMU also carries.
+    beta_0 [1/(m A)], beta_1 [1/m]: the controller's model of the isolator (FMU parameters of their own, which
+    may differ from the plant's); the law itself is ``mre_isolator_core``'s.
     """
 
-    k0_0: float = _TABLE2_PAPER["k0_0"] / MM
-    k0_1: float = _TABLE2_PAPER["k0_1"] / MM
-    c0_0: float = _TABLE2_PAPER["c0_0"] / MM
-    c0_1: float = _TABLE2_PAPER["c0_1"] / MM
-    alpha_0: float = _TABLE2_PAPER["alpha_0"]
-    alpha_1: float = _TABLE2_PAPER["alpha_1"]
-    beta_0: float = _TABLE2_PAPER["beta_0"] / MM
-    beta_1: float = _TABLE2_PAPER["beta_1"] / MM
+    k0_0: float = _TABLE2.k0_0
+    k0_1: float = _TABLE2.k0_1
+    c0_0: float = _TABLE2.c0_0
+    c0_1: float = _TABLE2.c0_1
+    alpha_0: float = _TABLE2.alpha_0
+    alpha_1: float = _TABLE2.alpha_1
+    beta_0: float = _TABLE2.beta_0
+    beta_1: float = _TABLE2.beta_1
     n_isolators: int = 2
 
     def __post_init__(self) -> None:
@@ -126,37 +121,24 @@ class IsolatorLaw:
 
     def force(self, x: float, v: float, i: float) -> float:
         """Total restoring force [N] at displacement x [m], velocity v [m/s], current i [A] (Eq. 17)."""
-        c0 = self.c0_0 * i + self.c0_1
-        k0 = self.k0_0 * i + self.k0_1
-        alpha = self.alpha_0 * i + self.alpha_1
-        beta = self.beta_0 * i + self.beta_1
-        return self.n_isolators * (c0 * v + k0 * x + alpha * _sinh(beta * x))
+        return isolator_core.force_with(x, v, i, self, self.n_isolators)
 
     def forces(self, x: float, v: float, currents: np.ndarray) -> np.ndarray:
-        """:meth:`force` on an array of currents [A] (numpy, for grid searches)."""
-        i = np.asarray(currents, dtype=float)
-        # sinh's argument clipped at +-700 (finite, ~5e303): changes nothing below |x| ~ 0.9 m
-        spring = (self.alpha_0 * i + self.alpha_1) * np.sinh(np.clip((self.beta_0 * i + self.beta_1) * x, -700, 700))
-        return self.n_isolators * ((self.c0_0 * i + self.c0_1) * v + (self.k0_0 * i + self.k0_1) * x + spring)
+        """:meth:`force` on an array of currents [A] (numpy, for grid searches; sinh's argument clipped at +-700)."""
+        return isolator_core.force_with(x, v, np.asarray(currents, dtype=float), self, self.n_isolators,
+                                        _clipped_sinh)
 
     def dforce_di(self, x: float, v: float, i: float) -> float:
         """dF/di [N/A] at x [m], v [m/s], i [A]: the paper's Eq. 34 bracket times n_isolators."""
-        alpha = self.alpha_0 * i + self.alpha_1
-        beta = self.beta_0 * i + self.beta_1
-        bx = beta * x
-        return self.n_isolators * (self.c0_0 * v + self.k0_0 * x + self.alpha_0 * _sinh(bx)
-                                   + alpha * self.beta_0 * x * _cosh(bx))
+        return isolator_core.current_sensitivity(x, v, i, self, self.n_isolators)
 
     def damping(self, i: float) -> float:
         """Linear damping of all devices [N s/m] at current i [A]."""
-        return self.n_isolators * (self.c0_0 * i + self.c0_1)
+        return isolator_core.isolator_damping(i, self, self.n_isolators)
 
     def stiffness(self, i: float, x_lin: float) -> float:
         """Linearised stiffness of all devices [N/m] at i [A]: secant at amplitude x_lin [m] (0: tangent at 0)."""
-        alpha = self.alpha_0 * i + self.alpha_1
-        beta = self.beta_0 * i + self.beta_1
-        spring = alpha * beta if x_lin == 0.0 else alpha * _sinh(beta * x_lin) / x_lin
-        return self.n_isolators * (self.k0_0 * i + self.k0_1 + spring)
+        return isolator_core.secant_stiffness(x_lin, i, self, self.n_isolators)
 
 
 @dataclass(frozen=True)
@@ -167,9 +149,9 @@ class BuildingModel:
     (j >= 1) is storey j. Defaults: Table 3 of the paper (Dyke et al. 1996) on a 98.3 kg base.
     """
 
-    m: tuple[float, ...] = DYKE_MASSES
-    k: tuple[float, ...] = DYKE_STIFFNESSES
-    c: tuple[float, ...] = DYKE_DAMPINGS
+    m: tuple[float, ...] = LEVEL_MASSES
+    k: tuple[float, ...] = LEVEL_STIFFNESSES
+    c: tuple[float, ...] = LEVEL_DAMPINGS
 
     def __post_init__(self) -> None:
         if not (len(self.m) == len(self.k) == len(self.c)) or len(self.m) < 1:
@@ -481,8 +463,8 @@ def building_defaults(n_levels: int) -> dict[str, float]:
     """Default values of :func:`building_docs` (the Dyke model for four levels, its upper storey repeated else)."""
     out = {}
     for j in range(n_levels):
-        src = min(j, len(DYKE_MASSES) - 1)
-        out[f"m_{j}"], out[f"k_{j}"], out[f"c_{j}"] = DYKE_MASSES[src], DYKE_STIFFNESSES[src], DYKE_DAMPINGS[src]
+        src = min(j, len(LEVEL_MASSES) - 1)
+        out[f"m_{j}"], out[f"k_{j}"], out[f"c_{j}"] = LEVEL_MASSES[src], LEVEL_STIFFNESSES[src], LEVEL_DAMPINGS[src]
     return out
 
 
@@ -599,3 +581,52 @@ class EstimatedStateController:
         self.i = self.decide(x, v, F)
         self.estimator.update(np.concatenate(([x], acc)), F, h)
         return self.i
+
+
+def design_problem(controller_class: type, parts: Callable[[Mapping[str, Any], int], Any],
+                   values: Mapping[str, Any], n_levels: int) -> tuple[str, str] | None:
+    """(parameter, message) if the controller's design cannot be made from these values, or None: every
+    parameter in its domain (:func:`first_parameter_problem`), process noise that is not all zero, a
+    positive control weight and a finite, stabilizing gain (the design the unit makes when it initializes,
+    made before any run; each set of values once per process: a study plans every run)."""
+    try:
+        key = (controller_class.__qualname__, n_levels, tuple(sorted(values.items())))
+        hash(key)
+    except TypeError:
+        key = None
+    if key is not None and key in _DESIGN_CHECKED:
+        return _DESIGN_CHECKED[key]
+    found = _design_problem(controller_class, parts, values, n_levels)
+    if key is not None:
+        _DESIGN_CHECKED[key] = found
+    return found
+
+
+_DESIGN_CHECKED: dict[Any, tuple[str, str] | None] = {}
+
+
+def _design_problem(controller_class: type, parts: Callable[[Mapping[str, Any], int], Any],
+                    values: Mapping[str, Any], n_levels: int) -> tuple[str, str] | None:
+    found = first_parameter_problem(parts, values, n_levels)
+    if found is not None:
+        return found
+    design, weights, noise, building, isolator = parts(values, n_levels)
+    if noise.s_ground <= 0 and noise.s_force <= 0:
+        return ("s_ground", "process noise intensities s_ground and s_force are both 0: the Kalman filter would "
+                            "trust its model alone (zero gain, every sensor ignored); give at least one a positive "
+                            "value")
+    try:
+        controller = controller_class(design, weights, noise, building, isolator)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        text = str(exc)
+        parameter = ("r" if "control weight" in text else "s_ground" if "Kalman" in text
+                     else "c_0" if "passive system" in text else "i_nom")
+        return parameter, f"the controller's design fails with these parameters: {text}"
+    gain = getattr(controller, "K_u", None)
+    if gain is not None:
+        plant = linearised_plant(building, isolator, getattr(design, "i_nom", 0.0), getattr(design, "x_lin", 0.0))
+        poles = np.linalg.eigvals(plant.A - np.outer(plant.b, gain))
+        if not np.all(np.real(poles) < 0):
+            return ("i_nom", f"the design is not stabilizing (closed-loop pole {poles[np.argmax(poles.real)]:.3g}): "
+                             "the linearised plant is not stabilizable with these weights and model parameters")
+    return None

@@ -113,5 +113,6 @@ def controller_parts(values: Mapping[str, Any], n_levels: int = 4) -> tuple[
 
 
 def parameter_problem(values: Mapping[str, Any], n_levels: int = 4) -> tuple[str, str] | None:
-    """(parameter, message) for the first FMU parameter out of its domain, or None (a check before any run)."""
-    return plant_core.first_parameter_problem(controller_parts, values, n_levels)
+    """(parameter, message) for the first FMU parameter out of its domain, or a design that cannot be made from
+    them (zero control weight, zero process noise, not stabilizing), or None (a check before any run)."""
+    return plant_core.design_problem(LyapunovController, controller_parts, values, n_levels)

@@ -18,7 +18,13 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from components.physics.ground_motion_core import GroundMotion
-from components.physics.mre_isolator_core import TABLE2, GeneralizedCoefficients, isolator_force
+from components.physics.mre_isolator_core import (
+    TABLE2,
+    GeneralizedCoefficients,
+    isolator_damping,
+    isolator_force,
+    isolator_stiffness,
+)
 from components.physics.shear_building_core import BuildingParams, state_space
 from components.physics.sosm_controller_core import SosmController, SosmGains
 
@@ -76,10 +82,8 @@ def _radau_functions(setup: SystemSetup, current):
 
     def jac(t: float, q: np.ndarray) -> np.ndarray:
         i = current(t)
-        beta = c.beta_0 * i + c.beta_1
-        alpha = c.alpha_0 * i + c.alpha_1
-        dF_dx = setup.n_isolators * (c.k0_0 * i + c.k0_1 + alpha * beta * np.cosh(beta * q[0]))
-        dF_dv = setup.n_isolators * (c.c0_0 * i + c.c0_1)
+        dF_dx = isolator_stiffness(float(q[0]), i, c, setup.n_isolators)
+        dF_dv = isolator_damping(i, c, setup.n_isolators)
         J = A.copy()
         J[:, 0] += B[:, 1] * dF_dx
         J[:, n] += B[:, 1] * dF_dv

@@ -194,20 +194,99 @@ def busy_reason() -> str | None:
             f"model per process: run one OpenSeesBuilding per process (studies run each simulation in its own)")
 
 
-def check_script(script: Path | str, n_storeys: int | None = None) -> str | None:
+SCRIPT_CHECK_TIMEOUT_S = 60.0
+"""Longest a model script may take to build its model in the check before a run [s]."""
+SCRIPT_CHECK_ENV = "MRE_COSIM_SCRIPT_CHECK_TIMEOUT_S"
+"""Environment variable that sets another bound [s] (a positive number)."""
+_CHECK_FLAG = "--check-model-script"
+
+
+def check_timeout() -> float:
+    """The bound of a script check [s]: ``$MRE_COSIM_SCRIPT_CHECK_TIMEOUT_S`` if a positive number, else the default."""
+    try:
+        value = float(os.environ.get(SCRIPT_CHECK_ENV, ""))
+    except ValueError:
+        return SCRIPT_CHECK_TIMEOUT_S
+    return value if math.isfinite(value) and value > 0 else SCRIPT_CHECK_TIMEOUT_S
+
+
+def check_script(script: Path | str, n_storeys: int | None = None, timeout_s: float | None = None) -> str | None:
     """Problem text if the model script raises or breaks the convention (or openseespy is missing), else None.
 
-    For a check before a run: builds the model in this process and wipes it again. Skipped
-    (None) while an OpenSees building lives in this process, whose model it would destroy.
+    For a check before a run: the script builds its model in a **child process** (this file run as a
+    program), bounded by ``timeout_s`` (default :func:`check_timeout`), so that a script that never ends, ends
+    the process (``sys.exit``, ``os._exit``), changes the working folder (``os.chdir``) or crashes cannot stop
+    the caller, move its output or leave it without a message: each is a problem naming the script.
     ``n_storeys``: the unit's storey count, which the script's FLOOR_NODES must match (None: any).
     """
-    if busy_reason() is not None:
-        return None
+    script = Path(os.path.abspath(script))
+    timeout_s = check_timeout() if timeout_s is None else timeout_s
     try:
-        OpenSeesBuilding(script, n_storeys).close()
+        st = os.stat(script)
+        key = (str(script), st.st_size, st.st_mtime_ns, n_storeys)
+    except OSError:
+        key = None
+    if key in _CHECKED:  # a study plans each run: one child per script and version
+        return _CHECKED[key]
+    verdict = _check_script_in_child(script, n_storeys, timeout_s)
+    if key is not None and (verdict is None or "did not finish" not in verdict):
+        _CHECKED[key] = verdict
+    return verdict
+
+
+_CHECKED: dict[Any, str | None] = {}  # (path, size, mtime, storeys) -> verdict of check_script
+
+
+def _check_script_in_child(script: Path, n_storeys: int | None, timeout_s: float) -> str | None:
+    import subprocess
+
+    with tempfile.TemporaryDirectory(prefix="mre-cosim-script-check-") as tmp:
+        result, output = Path(tmp) / "result.txt", Path(tmp) / "output.txt"
+        command = [sys.executable, str(Path(__file__).resolve()), _CHECK_FLAG, str(script), str(n_storeys or 0),
+                   str(result)]
+        try:
+            with open(output, "wb") as out:
+                done = subprocess.run(command, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                                      timeout=timeout_s, check=False)
+        except subprocess.TimeoutExpired:
+            return (f"OpenSees model script {script} did not finish building its model within {timeout_s:g} s "
+                    f"(a loop that never ends?); the check was stopped (set {SCRIPT_CHECK_ENV} for a longer bound)")
+        except OSError as exc:
+            return f"OpenSees model script {script}: cannot start the check of it: {exc.strerror or exc}"
+        try:
+            verdict = result.read_text(encoding="utf-8")
+        except OSError:
+            said = _tail(output)
+            how = f"exit code {done.returncode}" if done.returncode >= 0 else f"signal {-done.returncode}"
+            return (f"OpenSees model script {script} ended the process ({how}) before its model was built: a model "
+                    "script must not call sys.exit, os._exit or end the interpreter otherwise"
+                    + (f" (it printed: {said})" if said else ""))
+    return verdict or None
+
+
+def _tail(path: Path, limit: int = 300) -> str:
+    """The last ``limit`` characters of a text file, on one line ('' if unreadable)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, os.path.getsize(path) - limit))
+            return " ".join(f.read().decode("utf-8", "replace").split())
+    except OSError:
+        return ""
+
+
+def _check_in_child(script: str, n_storeys: int, result: str) -> None:
+    """The child's side of :func:`check_script`: build the model, write the verdict ('' if sound) to ``result``."""
+    cwd = os.getcwd()
+    try:
+        OpenSeesBuilding(script, n_storeys or None).close()
+        verdict = ""
     except (ModelScriptError, OpenSeesUnavailable) as exc:
-        return str(exc)
-    return None
+        verdict = str(exc)
+    if not verdict and os.getcwd() != cwd:
+        verdict = (f"OpenSees model script {script} changes the working folder (to {os.getcwd()}): a model script "
+                   "must not call os.chdir (relative paths, the run's output among them, would move)")
+    with open(result, "w", encoding="utf-8") as f:
+        f.write(verdict)
 
 
 def substeps_problem(substeps: Any) -> str | None:
@@ -220,8 +299,9 @@ def substeps_problem(substeps: Any) -> str | None:
 def parameter_problem(values: Mapping[str, Any], n_storeys: int | None = None) -> tuple[str, str] | None:
     """(parameter, message) for the unit's parameters (``script``, ``substeps``) before any run, or None.
 
-    The script is run here, in this process, as the unit runs it when it initializes
-    (:func:`check_script`): a script that raises or declares no base node is refused up front.
+    The script is run in a child process, bounded in time, as the unit runs it when it initializes
+    (:func:`check_script`): a script that raises, ends the process, never ends, changes the working folder or
+    declares no base node is refused up front.
     """
     text = substeps_problem(values.get("substeps", 1))
     if text is not None:
@@ -512,3 +592,7 @@ class OpenSeesBuilding:
             self.close()
         except Exception:
             pass
+
+
+if __name__ == "__main__" and len(sys.argv) == 5 and sys.argv[1] == _CHECK_FLAG:  # the child of check_script
+    _check_in_child(sys.argv[2], int(sys.argv[3]), sys.argv[4])

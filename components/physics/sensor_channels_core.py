@@ -5,7 +5,8 @@ measurements that are not the plant's exact values. Each channel passes one sign
 
     y_k(t_n) = u_k(t_{n-d}) + rms_k * z_k,n,    z_k,n ~ N(0, 1) independent, seeded,
 
-with d >= 0 whole communication steps of delay (the same for every channel) and rms_k >= 0 the
+with d >= 0 whole communication steps of delay (the unit's own steps, ``units.NAME.step`` when set; the same for
+every channel) and rms_k >= 0 the
 stated root mean square of the additive noise in the signal's own SI unit. The noise is
 white in discrete time: one sample per communication point, held (the model of a digital
 controller's sampled sensor; the usual continuous-time white noise of intensity S sampled at a
@@ -21,7 +22,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -39,8 +41,8 @@ class SensorChannels:
                 raise ValueError(f"channel {k + 1}: noise RMS must be >= 0 and finite, got {r}")
         if isinstance(delay, bool) or int(delay) != delay or not 0 <= delay <= MAX_DELAY_STEPS:
             raise ValueError(f"delay must be a whole number of steps in [0, {MAX_DELAY_STEPS}], got {delay}")
-        if isinstance(seed, bool) or int(seed) != seed or not 0 <= seed < 2**32:
-            raise ValueError(f"seed must be an integer in [0, 2^32), got {seed}")
+        if isinstance(seed, bool) or int(seed) != seed or not 0 <= seed < 2**31:  # the FMU's seed: an FMI Integer
+            raise ValueError(f"seed must be an integer in [0, 2^31 - 1] (an FMI Integer, int32), got {seed}")
         self.rms = np.asarray(rms, dtype=float)
         self.delay = int(delay)
         self.seed = int(seed)
@@ -72,3 +74,25 @@ class SensorChannels:
         """y at the present sample: ``u_live`` + noise (delay 0), else the sample of ``delay`` steps ago + noise."""
         base = np.asarray(u_live, dtype=float) if self.delay == 0 else self._history[0]
         return base + self._noise
+
+
+def parameter_problem(values: Mapping[str, Any], n_levels: int = 0) -> tuple[str, str] | None:
+    """(parameter, message) for the first parameter out of its domain, or None: the checks :class:`SensorChannels`
+    makes when the unit initializes (``delay`` whole steps in [0, MAX_DELAY_STEPS], each ``rms_*`` >= 0 and
+    finite), made before any run."""
+    delay = values.get("delay", 0)
+    try:
+        whole = not isinstance(delay, bool) and float(delay) == int(float(delay))
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole or not 0 <= int(float(delay)) <= MAX_DELAY_STEPS:
+        return "delay", f"delay must be a whole number of communication steps in [0, {MAX_DELAY_STEPS}], got {delay!r}"
+    for name in sorted(n for n in values if n.startswith("rms_")):
+        value = values[name]
+        try:
+            ok = not isinstance(value, bool) and math.isfinite(float(value)) and float(value) >= 0.0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            return name, f"noise RMS {name} must be >= 0 and finite, got {value!r}"
+    return None

@@ -28,15 +28,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-# Dyke et al. (1996) three-storey model, Table 3 of the paper (SI units).
-DYKE_MASSES = (98.3, 98.3, 98.3)  # kg, floors 1..3
-DYKE_STIFFNESSES = (516e3, 684e3, 684e3)  # N/m, storeys 1..3
-DYKE_DAMPINGS = (125.0, 50.0, 50.0)  # N*s/m, storeys 1..3
-# Assumption (the paper gives no base floor): a base slab like a floor, no spring or
-# dashpot to the ground besides the isolators.
-BASE_MASS = 98.3  # kg
-BASE_STIFFNESS = 0.0  # N/m
-BASE_DAMPING = 0.0  # N*s/m
+# Dyke et al. (1996) three-storey model, Table 3 of the paper, on the assumed base floor (SI units): its one
+# place is dyke_building, re-exported here.
+try:  # a package module here, a bare module in an FMU
+    from .dyke_building import (
+        BASE_DAMPING,
+        BASE_MASS,
+        BASE_STIFFNESS,
+        DYKE_DAMPINGS,
+        DYKE_MASSES,
+        DYKE_STIFFNESSES,
+    )
+except ImportError:
+    from dyke_building import BASE_DAMPING, BASE_MASS, BASE_STIFFNESS, DYKE_DAMPINGS, DYKE_MASSES, DYKE_STIFFNESSES
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,27 @@ def zoh_discretize(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, 
     return e[:n, :n], e[:n, n:]
 
 
+def zoh_quadratic_integral(A: np.ndarray, B: np.ndarray, Q: np.ndarray, h: float) -> np.ndarray:
+    """W with integral_0^h z(t)' Q z(t) dt = z(0)' W z(0) for z = [q, u], q' = A q + B u, u held over h [s].
+
+    Van Loan's block exponential (C. F. Van Loan, "Computing integrals involving the matrix
+    exponential", IEEE Trans. Autom. Control 23(3), 1978, Theorem 1): with Z = [[A, B], [0, 0]],
+    expm([[-Z', Q], [0, Z]] h) = [[., F12], [0, F22]] and W = F22' F12. ``Q`` is (n+m) x (n+m).
+    """
+    n, m = B.shape
+    nz = n + m
+    Z = np.zeros((nz, nz))
+    Z[:n, :n] = A
+    Z[:n, n:] = B
+    big = np.zeros((2 * nz, 2 * nz))
+    big[:nz, :nz] = -Z.T
+    big[:nz, nz:] = Q
+    big[nz:, nz:] = Z
+    e = expm(big * h)
+    W = e[nz:, nz:].T @ e[:nz, nz:]
+    return 0.5 * (W + W.T)
+
+
 def natural_frequencies(p: BuildingParams) -> np.ndarray:
     """Undamped natural circular frequencies [rad/s], ascending (eigenvalues of M^-1 K).
 
@@ -138,10 +163,19 @@ def natural_frequencies(p: BuildingParams) -> np.ndarray:
     return np.sqrt(np.clip(np.sort(lam.real), 0.0, None))
 
 
+ENERGY_NAMES = ("E_input", "E_isolator", "E_damping", "E_strain", "E_hysteretic", "E_kinetic")
+"""The building's energy outputs [J], in the order of ``energies()`` (docs/running.md, "Validity"):
+relative input energy -integral ag sum_j m_j v_j dt (Uang & Bertero 1990), the work the building
+gave the isolators (integral F v_0 dt with the force it integrated), storey (and base) damping,
+recoverable strain energy now, storey hysteretic work so far, relative kinetic energy now."""
+
+
 class ShearBuilding:
     """Exact-ZOH time stepping of the shear building.
 
-    ``step(ag, F, h)`` advances the state by h [s] with ag [m/s^2] and F [N] held.
+    ``step(ag, F, h)`` advances the state by h [s] with ag [m/s^2] and F [N] held. Each step also
+    adds its exact work integrals (the inputs are held, so they follow from the state at both ends
+    and Van Loan's integral of the damping power): ``energies()`` (:data:`ENERGY_NAMES`).
     """
 
     def __init__(self, params: BuildingParams) -> None:
@@ -162,6 +196,43 @@ class ShearBuilding:
         self._shear_k = np.asarray(params.k[1:], dtype=float)
         self._shear_c = np.asarray(params.c[1:], dtype=float)
         self._output_rows = self._output_matrix()
+        self._energy_rows: dict[float, np.ndarray] = {}  # step -> the three work integrals as quadratic forms
+        self.work = np.zeros(3)  # [E_input, E_isolator, E_damping] so far [J]
+        self._steppers: dict[float, np.ndarray] = {}
+        nz = self._nq + 2
+        self._scratch = np.zeros(self._nq + 3 * nz)  # the next state, then Q_k z of each work form
+        _, C, K = matrices(params)
+        self._K = K
+        self._m = np.asarray(params.m, dtype=float)
+        self._C = C
+
+    def _work_forms(self, h: float) -> np.ndarray:
+        """(3 * nz, nz) rows Q_k with the step's work k = z' Q_k z, z = [q, ag, F] at the step start."""
+        rows = self._energy_rows.get(h)
+        if rows is None:
+            n, nq = self.n_levels, self._nq
+            nz = nq + 2
+            PG = self._fused(h)
+            dx = PG[:n].copy()  # x(t + h) - x(t) as rows over z
+            dx[:, :n] -= np.eye(n)
+            q_in = np.zeros((nz, nz))
+            q_in[nq] = -self._m @ dx  # -ag sum_j m_j dx_j
+            q_iso = np.zeros((nz, nz))
+            q_iso[nq + 1] = dx[0]  # F dx_0
+            Q = np.zeros((nz, nz))
+            Q[n:nq, n:nq] = self._C  # damping power v' C v
+            q_damp = zoh_quadratic_integral(self.A, self.B, Q, h)
+            if len(self._energy_rows) > 16:
+                self._energy_rows.clear()
+            rows = self._energy_rows[h] = np.vstack([q_in, q_iso, q_damp])
+        return rows
+
+    def energies(self) -> np.ndarray:
+        """[E_input, E_isolator, E_damping, E_strain, E_hysteretic, E_kinetic] [J] (:data:`ENERGY_NAMES`):
+        the work integrals so far, then the strain (1/2 x' K x) and kinetic (1/2 v' M v) energy now;
+        linear storeys dissipate no hysteretic work."""
+        x, v = self.x, self.v
+        return np.array([*self.work, 0.5 * x.dot(self._K.dot(x)), 0.0, 0.5 * self._m.dot(v * v)])
 
     def discretization(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma) for step h, cached per step size."""
@@ -182,9 +253,22 @@ class ShearBuilding:
         # ndarray.dot, not @: the same BLAS product (the same numbers) at half the call overhead,
         # which is most of the cost for matrices this small.
         z, following = self._z, self._z_next
-        self._fused(h).dot(self._state_and_inputs(ag, F), out=following[: self._nq])
+        stepper = self._steppers.get(h)
+        if stepper is None:
+            stepper = self._stepper(h)
+        scratch = self._scratch
+        stepper.dot(self._state_and_inputs(ag, F), out=scratch)  # the next state and the work forms' rows at once
+        following[: self._nq] = scratch[: self._nq]
+        self.work += scratch[self._nq:].reshape(3, -1).dot(z)  # z' Q_k z (no stored view: FMU states deep-copy)
         self._z, self._z_next = following, z
         self.steps += 1
+
+    def _stepper(self, h: float) -> np.ndarray:
+        """[Phi, Gamma] over the rows Q_k of the work forms, for step h (cached)."""
+        if len(self._steppers) > 16:
+            self._steppers.clear()
+        stepper = self._steppers[h] = np.vstack([self._fused(h), self._work_forms(h)])
+        return stepper
 
     @property
     def q(self) -> np.ndarray:
@@ -624,7 +708,10 @@ class HystereticShearBuilding:
             self._B_ext = np.hstack([B, np.vstack([np.zeros((n, ns)), Gp / m_arr[:, None]])])
             self._A = A
             self._cache: dict[float, np.ndarray] = {}
+            self._damping_forms: dict[float, np.ndarray] = {}
             self._bands = [law.elastic_band() for law in self.storey_laws]
+            self._C_full = C
+        self.work = [0.0] * 4  # [E_input, E_isolator, E_damping, E_restoring (storey springs, k_0, P-Delta)] [J]
 
     # -- state -----------------------------------------------------------------------------------
     @property
@@ -704,11 +791,55 @@ class HystereticShearBuilding:
             if c1 + upper < c or c1 - lower > c:
                 return False
             drifts.append(d)
+        x0, work = self._x, self.work
+        W = self._damping_forms.get(h)
+        if W is None:
+            nz = len(w)
+            Q = np.zeros((nz, nz))
+            Q[n:2 * n, n:2 * n] = self._C_full  # damping power v' C v, exact for the held inputs and offsets
+            if len(self._damping_forms) > 16:
+                self._damping_forms.clear()
+            W = self._damping_forms[h] = zoh_quadratic_integral(self._A, self._B_ext, Q, h)
+        work[2] += float(w.dot(W.dot(w)))
         f, kg = self._f, self.kg
+        spring = 0.0
         for s, law in enumerate(laws):
+            d0, p = x0[s + 1] - x0[s], law.c_strain - law.c_stress / law.E0
+            spring += 0.5 * law.E0 * ((drifts[s] - p) ** 2 - (d0 - p) ** 2) + 0.5 * kg[s] * (drifts[s] ** 2 - d0 ** 2)
             f[s] = law.commit_elastic(drifts[s]) + kg[s] * drifts[s]
         self._x, self._v = xv[:n], xv[n:]
+        self._add_work(x0, ag, F, spring)
         return True
+
+    def _add_work(self, x0: list[float], ag: float, F: float, spring: float) -> None:
+        """Add a step's input and isolator work (inputs held: exact from the displacements at both ends) and
+        the storey springs' work ``spring`` [J], with k_0's."""
+        x1, m, work = self._x, self.m, self.work
+        work[0] -= ag * sum(m[i] * (x1[i] - x0[i]) for i in range(self.n_levels))
+        work[1] += F * (x1[0] - x0[0])
+        work[3] += spring + 0.5 * self.k0 * (x1[0] ** 2 - x0[0] ** 2)
+
+    def energies(self) -> np.ndarray:
+        """[E_input, E_isolator, E_damping, E_strain, E_hysteretic, E_kinetic] [J] (:data:`ENERGY_NAMES`).
+
+        The work integrals are those of the scheme: exact on the elastic path; on Newmark's sub-steps
+        the trapezoidal rule, with which the average-acceleration scheme balances energy exactly
+        (to Newton's tolerance). The strain energy is the recoverable one now: 1/2 k_0 x_0^2, per storey
+        f^2 / (2 E0) (Steel01, unloading along E0) or 1/2 b k d^2 + 1/2 (1 - b) k (dy z)^2 (Bouc-Wen's
+        elastic and hysteretic springs), plus 1/2 kg d^2 (P-Delta); the hysteretic work is what the
+        storey springs took beyond it."""
+        x, v, m = self._x, self._v, self.m
+        strain = 0.5 * self.k0 * x[0] ** 2
+        for s, law in enumerate(self.storey_laws):
+            d = x[s + 1] - x[s]
+            if isinstance(law, Steel01):
+                strain += 0.5 * law.c_stress ** 2 / law.E0
+            else:
+                strain += 0.5 * law.b * law.k * d * d + 0.5 * (1.0 - law.b) * law.k * (law.dy * law.c_z) ** 2
+            strain += 0.5 * self.kg[s] * d * d
+        kinetic = 0.5 * sum(m[i] * v[i] * v[i] for i in range(self.n_levels))
+        e_in, e_iso, e_damp, e_spring = self.work
+        return np.array([e_in, e_iso, e_damp, strain, e_spring - strain, kinetic])
 
     def _newmark(self, ag: float, F: float, h: float) -> None:
         """One Newmark (gamma = 1/2, beta = 1/4) sub-step of h [s] with Newton iterations."""
@@ -760,13 +891,21 @@ class HystereticShearBuilding:
         else:
             raise ConvergenceError(f"Newton did not converge in {NEWTON_MAX_ITERATIONS} iterations")
         x1 = [x0[i] + D[i] for i in range(n)]
+        f0 = self._f
+        spring = 0.0
         for s in range(ns):
             d = x1[s + 1] - x1[s]
             f[s] = laws[s].trial(d)[0] + kg[s] * d
             laws[s].commit()
+            spring += 0.5 * (f0[s] + f[s]) * (d - (x0[s + 1] - x0[s]))  # trapezoidal work of the storey spring
         self._x = x1
-        self._v = [g2 * D[i] - v0[i] for i in range(n)]
+        self._v = v1 = [g2 * D[i] - v0[i] for i in range(n)]
         self._f = f
+        # damping work sum dx' C (v0 + v1) / 2 (the trapezoidal rule, as the scheme integrates)
+        vm = [0.5 * (v0[i] + v1[i]) for i in range(n)]
+        damping = self.c0 * D[0] * vm[0] + sum(cs[s] * (D[s + 1] - D[s]) * (vm[s + 1] - vm[s]) for s in range(ns))
+        self.work[2] += damping
+        self._add_work(x0, ag, F, spring)
 
     # -- outputs ---------------------------------------------------------------------------------
     def output_vector(self, ag: float, F: float) -> np.ndarray:

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .mre_isolator_core import current_sensitivity
+
 
 def psi(x: np.ndarray, v: np.ndarray, i: np.ndarray, model, m_b: float, n_isolators: int = 2) -> np.ndarray:
     """Psi of Eq. (34) [m/(s^2 A)]: the sensitivity of s'' to the current rate u.
@@ -40,11 +42,8 @@ def psi(x: np.ndarray, v: np.ndarray, i: np.ndarray, model, m_b: float, n_isolat
     ``mre_isolator_core.GeneralizedCoefficients``); m_b is the base-floor mass [kg].
     """
     x, v, i = (np.asarray(a, dtype=float) for a in (x, v, i))
-    alpha = model.alpha_0 * i + model.alpha_1
-    beta = model.beta_0 * i + model.beta_1
     with np.errstate(over="ignore", invalid="ignore"):
-        dF_di = (model.c0_0 * v + model.k0_0 * x + model.alpha_0 * np.sinh(beta * x)
-                 + alpha * model.beta_0 * x * np.cosh(beta * x))
+        dF_di = current_sensitivity(x, v, i, model, 1, np.sinh, np.cosh)  # one device (the isolator law's dF/di)
     return -(n_isolators / m_b) * dF_di
 
 

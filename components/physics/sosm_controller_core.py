@@ -11,7 +11,8 @@ quasi-continuous law of Eq. (39):
 Sign handling (the paper's Eq. 36 assumes d s''/du = Psi > 0, but Psi of Eq. 34 has the
 sign of -(c_E1 x_b' + k_E1 x_b + alpha_1 sinh(beta x_b) + alpha(i) beta_1 x_b cosh(beta x_b)),
 which flips with the motion): the applied rate is sign(Psi) * u, evaluated from the
-measurements and the controller's model of the isolator (Table 2 by default), and 0
+measurements and the controller's model of the isolator (Table 2 by default; the law's
+dF/di is ``mre_isolator_core.current_sensitivity``, which travels in the controller's FMU), and 0
 where Psi = 0. This makes the reaching condition hold on both sides of x_b = 0.
 
 The current is integrated with forward Euler over each control step and held in
@@ -37,37 +38,27 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+try:  # a package module here, a bare module in an FMU
+    from .mre_isolator_core import TABLE2, current_sensitivity
+except ImportError:
+    from mre_isolator_core import TABLE2, current_sensitivity
+
 
 @dataclass(frozen=True)
 class IsolatorModel:
     """The controller's model of the isolator: the coefficients of Eq. (13)-(16) that Psi
-    (Eq. 34) needs, SI units, per device. Defaults: Table 2 of the paper.
-
-    Kept in this module (not imported from the isolator's core) so that the controller FMU
-    carries no module another FMU also carries; any object with these attributes (e.g.
+    (Eq. 34) needs, SI units, per device: c0_0 [N*s/(m*A)], k0_0 [N/(m*A)], alpha_0 [N/A],
+    alpha_1 [N], beta_0 [1/(m*A)], beta_1 [1/m]. Defaults: Table 2 of the paper
+    (``mre_isolator_core.TABLE2``); any object with these attributes (e.g.
     :class:`mre_isolator_core.GeneralizedCoefficients`) can stand in for it.
     """
 
-    c0_0: float = 576.7  # N*s/(m*A)   (0.5767 N*s/mm/A)
-    k0_0: float = 5816.1  # N/(m*A)    (5.8161 N/mm/A)
-    alpha_0: float = 4.9810  # N/A
-    alpha_1: float = 8.1100  # N
-    beta_0: float = 132.2  # 1/(m*A)   (0.1322 1/mm/A)
-    beta_1: float = 346.3  # 1/m       (0.3463 1/mm)
-
-
-def _sinh(z: float) -> float:
-    try:
-        return math.sinh(z)
-    except OverflowError:
-        return math.copysign(math.inf, z)
-
-
-def _cosh(z: float) -> float:
-    try:
-        return math.cosh(z)
-    except OverflowError:
-        return math.inf
+    c0_0: float = TABLE2.c0_0
+    k0_0: float = TABLE2.k0_0
+    alpha_0: float = TABLE2.alpha_0
+    alpha_1: float = TABLE2.alpha_1
+    beta_0: float = TABLE2.beta_0
+    beta_1: float = TABLE2.beta_1
 
 
 GAIN_PARAMETERS = {"lam": "lambda"}  # a gain whose FMU parameter has another name (lambda is a Python keyword)
@@ -129,15 +120,7 @@ def control_direction(x: float, v: float, i: float, coeffs: IsolatorModel | None
 
     x [m], v [m/s], i [A]; ``coeffs`` is the isolator model (Table 2 by default).
     """
-    coeffs = coeffs if coeffs is not None else _TABLE2
-    alpha = coeffs.alpha_0 * i + coeffs.alpha_1
-    beta = coeffs.beta_0 * i + coeffs.beta_1
-    bracket = (
-        coeffs.c0_0 * v
-        + coeffs.k0_0 * x
-        + coeffs.alpha_0 * _sinh(beta * x)
-        + alpha * coeffs.beta_0 * x * _cosh(beta * x)
-    )
+    bracket = current_sensitivity(x, v, i, coeffs if coeffs is not None else _TABLE2, 1)  # dF/di of one device
     if bracket == 0.0 or math.isnan(bracket):
         return 0.0
     return -math.copysign(1.0, bracket)

@@ -21,6 +21,13 @@ Range policy as MreIsolator: |x| beyond the identified range and beyond the devi
 limit each log one fmi2Warning when entered; a current outside [0, i_max] logs an
 fmi2Warning when entered and is clipped. Non-finite inputs fail the step with fmi2Error.
 The FMU state (fmi2GetFMUstate / fmi2SetFMUstate) holds y with every other attribute.
+
+Beyond the identified range (String parameter ``beyond_range``, as MreIsolator; docs/structures.md):
+'stop' (default: the model's own continuation, which adds no stiffening, plus the Kelvin stop of
+mre_isolator_core.stop_contact at +-x_limit with k_stop [N/m], c_stop [N.s/m], once on the base),
+'extrapolate' or 'tangent' (the same here: Eq. 1-2 everywhere, no stop). Parameters out of their
+domain (bouc_wen_core.device_problem: beta + gamma <= 0, a force that does not rise with x, a stop
+softer than the device) are logged when initialization ends and fail the first step.
 """
 
 from __future__ import annotations
@@ -28,32 +35,34 @@ from __future__ import annotations
 import copy
 import math
 
-from bouc_wen_core import SYNTHETIC_DEFAULT, bouc_wen_advance
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+import dyke_building
+import mre_isolator_core
+import shared_copies
+from bouc_wen_core import (
+    BEYOND_RANGE_DEFAULT,
+    COEFFICIENT_DOCS,
+    SYNTHETIC_DEFAULT,
+    BoucWenCurrentModel,
+    bouc_wen_advance,
+    device_problem,
+)
+from mre_isolator_core import (
+    BEYOND_RANGE,
+    CURRENT_MAX_A,
+    DEVICE_LIMIT_M,
+    IDENTIFIED_RANGE_M,
+    STOP_DAMPING,
+    STOP_STIFFNESS,
+    stop_contact,
+)
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-FMU_CORE_MODULES = ("bouc_wen_core",)
+FMU_CORE_MODULES = ("bouc_wen_core", "mre_isolator_core", "dyke_building", "shared_copies")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11 (bouc_wen_core uses numpy)
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
-CURRENT_MAX_A = 3.0
-IDENTIFIED_RANGE_M = 8e-3
-DEVICE_LIMIT_M = 15e-3
-
-_COEFFICIENTS = {
-    "k_0": ("N/(m.A)", "stiffness k slope per ampere"),
-    "k_1": ("N/m", "stiffness k at 0 A"),
-    "c_0": ("N.s/(m.A)", "damping c slope per ampere"),
-    "c_1": ("N.s/m", "damping c at 0 A"),
-    "alpha_0": ("N/A", "hysteretic force scale alpha slope per ampere"),
-    "alpha_1": ("N", "hysteretic force scale alpha at 0 A"),
-    "beta_0": ("1/(m.A)", "Bouc-Wen beta slope per ampere"),
-    "beta_1": ("1/m", "Bouc-Wen beta at 0 A"),
-    "gamma_0": ("1/(m.A)", "Bouc-Wen gamma slope per ampere"),
-    "gamma_1": ("1/m", "Bouc-Wen gamma at 0 A"),
-    "delta": ("1/m", "Bouc-Wen delta (fixed at 1/mm in identification)"),
-    "n": ("1", "Bouc-Wen exponent n"),
-}
+_COEFFICIENTS = COEFFICIENT_DOCS
 
 
 class BoucWenIsolator(Fmi2Slave):
@@ -73,6 +82,10 @@ class BoucWenIsolator(Fmi2Slave):
         self.x_identified = IDENTIFIED_RANGE_M
         self.x_limit = DEVICE_LIMIT_M
         self.dx_max = 2e-5
+        self.beyond_range = BEYOND_RANGE_DEFAULT
+        self.k_stop = STOP_STIFFNESS
+        self.c_stop = STOP_DAMPING
+        self._failed = ""
         self.y = 0.0
         for name, value in SYNTHETIC_DEFAULT.as_dict().items():
             setattr(self, name, value)
@@ -80,7 +93,8 @@ class BoucWenIsolator(Fmi2Slave):
 
         self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
         self.fmi_units.update(
-            x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m", dx_max="m", y="1"
+            x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m", dx_max="m", y="1",
+            k_stop="N/m", c_stop="N.s/m",
         )
         self.fmi_dependencies = {"F": ("x", "v", "i")}
 
@@ -120,6 +134,12 @@ class BoucWenIsolator(Fmi2Slave):
                 getter=self._force,
             )
         )
+        # Added after F, so that the value references of the original variables stay as they were.
+        choices = " or ".join(f"'{b}'" for b in BEYOND_RANGE)
+        self.register_variable(String("beyond_range", description=f"{choices}: the law beyond x_identified "
+                                      "('stop': with the stop at x_limit)", **par))
+        self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
+        self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
 
     def _current(self) -> float:
         return min(max(self.i, 0.0), self.i_max)
@@ -129,7 +149,25 @@ class BoucWenIsolator(Fmi2Slave):
         k = self.k_0 * i + self.k_1
         c = self.c_0 * i + self.c_1
         alpha = self.alpha_0 * i + self.alpha_1
-        return self.n_isolators * (k * self.x + c * self.v + alpha * self.y + self.F0)
+        force = self.n_isolators * (k * self.x + c * self.v + alpha * self.y + self.F0)
+        if self.beyond_range == "stop" and abs(self.x) > self.x_limit:
+            force += stop_contact(self.x, self.v, self.x_limit, self.k_stop, self.c_stop)
+        return force
+
+    def exit_initialization_mode(self):
+        # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
+        # another FMU's copy of the shared law module with other code: refused (shared_copies)
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return
+        try:
+            model = BoucWenCurrentModel(**{name: float(getattr(self, name)) for name in _COEFFICIENTS})
+            device_problem(model, self.i_max, self.n_isolators, self.beyond_range, self.x_identified,
+                           self.x_limit, self.k_stop, self.c_stop)
+        except (ValueError, TypeError) as exc:
+            self._failed = f"invalid isolator parameters: {exc}"
+            self.log(self._failed, Fmi2Status.error)
 
     def _warn_on_entry(self, key: str, outside: bool, message: str) -> None:
         if outside and not self._outside[key]:
@@ -137,6 +175,9 @@ class BoucWenIsolator(Fmi2Slave):
         self._outside[key] = outside
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return False
         for name in ("x", "v", "i"):
             value = getattr(self, name)
             if not math.isfinite(value):
@@ -150,12 +191,13 @@ class BoucWenIsolator(Fmi2Slave):
             "identified",
             ax > self.x_identified,
             f"|x| = {ax * 1e3:.3g} mm left the identified range "
-            f"{self.x_identified * 1e3:.3g} mm at t = {t:.6g} s: the model is extrapolated",
+            f"{self.x_identified * 1e3:.3g} mm at t = {t:.6g} s: the model goes on (no stiffening)",
         )
         self._warn_on_entry(
             "limit",
             ax > self.x_limit,
-            f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s",
+            f"|x| = {ax * 1e3:.3g} mm passed the device limit {self.x_limit * 1e3:.3g} mm at t = {t:.6g} s"
+            + (": the stop acts" if self.beyond_range == "stop" else ": no stop (beyond_range is not 'stop')"),
         )
         self._warn_on_entry(
             "current",

@@ -26,7 +26,8 @@ except ImportError as exc:  # the host's Python lacks a package: say which (the 
     raise ImportError(f"the ClippedOptimalCurrentController unit needs the Python packages numpy and scipy in the "
                       f"host's interpreter ({sys.executable}): {exc}") from exc
 
-FMU_CORE_MODULES = ("lqg_plant_core", "model_based_shell", "clipped_optimal_core")
+FMU_CORE_MODULES = ("lqg_plant_core", "mre_isolator_core", "dyke_building", "shared_copies",
+                    "model_based_shell", "clipped_optimal_core")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -66,7 +67,7 @@ class ClippedOptimalCurrentController(Fmi2Slave):
         self.register_variable(Integer("n_grid", description="inverse law: currents in the search grid",
                                        **shared.PARAMETER))
         shared.register_model_parameters(self, _DESIGN, plant_core.WEIGHT_DOCS, plant_core.NOISE_DOCS)
-        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.OUTPUT))
+        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.HELD_OUTPUT))
         self.register_variable(Real("f_c", description="desired isolator restoring force (LQG)",
                                     getter=lambda: self._f_c, **shared.OUTPUT))
 

@@ -32,7 +32,7 @@ class ConstantCurrent(Fmi2Slave):
         )
         self.register_variable(
             Real("i", description="command current", causality=Fmi2Causality.output,
-                 variability=Fmi2Variability.continuous, getter=lambda: self.current)
+                 variability=Fmi2Variability.discrete, getter=lambda: self.current)
         )
 
     def do_step(self, current_time: float, step_size: float) -> bool:

@@ -25,7 +25,8 @@ except ImportError as exc:  # the host's Python lacks a package: say which (the 
     raise ImportError(f"the FrequencyCurrentController unit needs the Python packages numpy and scipy in the "
                       f"host's interpreter ({sys.executable}): {exc}") from exc
 
-FMU_CORE_MODULES = ("lqg_plant_core", "model_based_shell", "frequency_controller_core")
+FMU_CORE_MODULES = ("lqg_plant_core", "mre_isolator_core", "dyke_building", "shared_copies",
+                    "model_based_shell", "frequency_controller_core")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -68,7 +69,7 @@ class FrequencyCurrentController(Fmi2Slave):
         for name, text in _INTEGERS.items():
             self.register_variable(Integer(name, description=text, **shared.PARAMETER))
         shared.register_model_parameters(self, _REALS)
-        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.OUTPUT))
+        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.HELD_OUTPUT))
         self.register_variable(Real("f_dominant", description="dominant frequency of the ground acceleration over "
                                     "the last window (0 before the first window has filled)",
                                     getter=lambda: self._f_dominant, **shared.OUTPUT))

@@ -26,7 +26,8 @@ except ImportError as exc:  # the host's Python lacks a package: say which (the 
     raise ImportError(f"the LyapunovCurrentController unit needs the Python packages numpy and scipy in the "
                       f"host's interpreter ({sys.executable}): {exc}") from exc
 
-FMU_CORE_MODULES = ("lqg_plant_core", "model_based_shell", "lyapunov_controller_core")
+FMU_CORE_MODULES = ("lqg_plant_core", "mre_isolator_core", "dyke_building", "shared_copies",
+                    "model_based_shell", "lyapunov_controller_core")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -62,7 +63,7 @@ class LyapunovCurrentController(Fmi2Slave):
         self.fmi_dependencies = {}
         shared.register_sensors(self)
         shared.register_model_parameters(self, _DESIGN, _Q_DOCS, plant_core.NOISE_DOCS)
-        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.OUTPUT))
+        self.register_variable(Real("i", description="command current", getter=lambda: self._i, **shared.HELD_OUTPUT))
         self.register_variable(Real("switch", description="z'PB (f(i_max) - f(0)), the change of dV/dt from 0 A "
                                     "to i_max: i_max where negative (P from the passive-off Lyapunov equation, "
                                     "z the Kalman estimate)",

@@ -4,7 +4,9 @@ Not an FMU itself (no ``_fmu.py``): the three shells list it in ``FMU_CORE_MODUL
 ``lqg_plant_core``, so it travels in each of their FMUs (the build takes a listed module from
 ``components/physics/``, else from here) and each shell imports it by its bare name. pythonfmu FMUs
 share one interpreter, so the copy loaded first serves all three: :func:`copy_problems` refuses to
-start when that copy (or ``lqg_plant_core``'s) came from another FMU with other code. The module
+start when that copy, or that of a module it shares with other FMUs (``lqg_plant_core`` and the
+modules it imports: ``mre_isolator_core``, the isolator law, also in the isolator and SOSM FMUs, and
+``dyke_building``, also in the building FMU), came from another FMU with other code. The module
 keeps no state of its own: everything lives on the shell instance.
 
 What it shares: the sensor inputs (x [m], v [m/s], a_0..a_3 [m/s^2], F [N]) and the model
@@ -18,11 +20,15 @@ error naming the unit and the time.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+import dyke_building
 import lqg_plant_core as plant_core
+import mre_isolator_core
+import shared_copies
 from lqg_plant_core import EstimatorDiverged
 from pythonfmu import Fmi2Causality, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
@@ -31,15 +37,17 @@ N_LEVELS = 4  # base floor and three storeys (the paper's building)
 INPUT = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
 PARAMETER = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
 OUTPUT = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.continuous}
+HELD_OUTPUT = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.discrete}  # held between steps
 Docs = dict[str, tuple[str, str]]
 
-_LOADED_SOURCE = Path(__file__).read_bytes()  # as loaded: the FMU folder it came from may be gone later
+LOADED_SOURCE = Path(__file__).read_bytes()  # as loaded: the FMU folder it came from may be gone later
 
 
 def copy_problems(resources: str | None) -> str:
-    """A text if ``lqg_plant_core`` or this module was loaded from another FMU with other code, else ""."""
+    """A text if ``lqg_plant_core``, ``mre_isolator_core``, ``dyke_building``, ``shared_copies`` or this module was
+    loaded from another FMU with other code, else ""."""
     return (plant_core.foreign_copy_problem(resources)
-            or plant_core.module_copy_problem(__file__, _LOADED_SOURCE, resources))
+            or shared_copies.copy_problem((mre_isolator_core, dyke_building, sys.modules[__name__]), resources))
 
 
 def set_model_defaults(slave: Any, sources: Iterable[tuple[Docs, Any]]) -> None:

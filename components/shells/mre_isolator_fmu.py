@@ -20,6 +20,9 @@ from __future__ import annotations
 import copy
 import math
 
+import dyke_building
+import mre_isolator_core
+import shared_copies
 from mre_isolator_core import (
     BEYOND_RANGE,
     COEFFICIENT_DOCS,
@@ -31,11 +34,12 @@ from mre_isolator_core import (
     TABLE2,
     GeneralizedCoefficients,
     bounded_force_law,
+    device_problem,
 )
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-FMU_CORE_MODULES = ("mre_isolator_core",)
+FMU_CORE_MODULES = ("mre_isolator_core", "dyke_building", "shared_copies")
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -139,9 +143,14 @@ class MreIsolator(Fmi2Slave):
         # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
         self._initialized = False
         self._law = None
-        self._failed = ""
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        if self._failed:
+            self.log(self._failed, Fmi2Status.error)
+            return
         try:
             law = self._make_law()
+            device_problem(self._coefficients(), self.i_max, self.n_isolators, self.beyond_range, self.x_identified,
+                           self.x_limit, self.k_stop)
         except ValueError as exc:
             self._failed = f"invalid isolator parameters: {exc}"
             self.log(self._failed, Fmi2Status.error)

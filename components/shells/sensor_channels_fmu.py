@@ -52,7 +52,7 @@ class SensorChannels(Fmi2Slave):
         par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
         out = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.continuous}
         self.register_variable(Integer("delay", description="measurement delay in communication steps (>= 0)", **par))
-        self.register_variable(Integer("seed", description="seed of the noise (0 ... 2^32 - 1)", **par))
+        self.register_variable(Integer("seed", description="seed of the noise (0 ... 2^31 - 1)", **par))
         for k, name in enumerate(CHANNELS):
             q = name.rsplit("_", 1)[0]
             unit, what = next((u, w) for qq, u, _, w in QUANTITIES if qq == q)

@@ -17,6 +17,9 @@ heights ``h_j`` [m] adds the linearised P-Delta stiffness -P_j/h_j (P_j: weight 
 ``residual_drift_j`` [m]
 (drift_j - f_j / k_j, the plastic offset; 0 for linear storeys) are FMI *local* variables:
 readable by any importer, not outputs, so that ``outputs: all`` records what it recorded before.
+So are the energy integrals ``E_input``, ``E_isolator``, ``E_damping``, ``E_strain``, ``E_hysteretic``,
+``E_kinetic`` [J] (``shear_building_core.ENERGY_NAMES``): what the building integrated, exact for the
+inputs it held over each step, for the application's energy balance (docs/running.md, "Validity").
 
 The number of storeys is fixed at build time (``N_STOREYS``, the build step renders
 variants under their own module names).
@@ -33,7 +36,10 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Intege
 from pythonfmu.enums import Fmi2Status
 
 try:
+    import dyke_building
+    import shared_copies
     from shear_building_core import (
+        ENERGY_NAMES,
         HYSTERESIS_LAWS,
         BuildingParams,
         ConvergenceError,
@@ -47,13 +53,21 @@ except ImportError as exc:  # the host's Python lacks a package: say which (the 
                       f"interpreter ({sys.executable}): {exc}") from exc
 
 N_STOREYS = 3
+ENERGY_DOCS = (
+    "relative input energy so far, -integral of ag sum_j m_j v_j dt (Uang & Bertero 1990)",
+    "work the building gave the isolators so far, integral of F v_0 dt with the force it integrated",
+    "energy the storey (and base) dampers took so far",
+    "recoverable strain energy of the storeys (and k_0) now",
+    "hysteretic work of the yielding storeys so far (0 for linear storeys)",
+    "relative kinetic energy now, sum_j m_j v_j^2 / 2",
+)
 # Defaults of the yielding storeys (used only when hysteresis is not 'linear'): the values of
 # scenarios/kobe_yielding.yaml, see docs/structures.md.
 DEFAULT_FY_DYKE = (3300.0, 3700.0, 3200.0)  # N, storeys 1..3: half the 0 A linear Kobe x0.5 peak shears
 DEFAULT_FY = 3200.0  # N, every storey of a variant with another storey count
 DEFAULT_B = 0.05  # post-yield stiffness ratio
 DEFAULT_N = 2.0  # Bouc-Wen exponent
-FMU_CORE_MODULES = ("shear_building_core",)
+FMU_CORE_MODULES = ("shear_building_core", "dyke_building", "shared_copies")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -85,6 +99,7 @@ class ShearBuilding(Fmi2Slave):
         self.h = [math.nan] + [0.0] * n  # storey heights [m]; 0: not given (P-Delta refuses it)
         self._model: BuildingModel | HystereticShearBuilding | None = None
         self._failed = ""
+        self._copy_problem = ""
         self._cache_key: tuple | None = None
         self._values: list[float] = []
         self._output_index: dict[int, int] = {}  # value reference -> index in output_vector
@@ -147,6 +162,14 @@ class ShearBuilding(Fmi2Slave):
         self.register_variable(Boolean("p_delta", description="add the linearised P-Delta stiffness -P_j/h_j", **par))
         for j in range(1, self.n_levels):
             self._param(f"h_{j}", self.h, j, "m", f"height of storey {j} (P-Delta)", par)
+        # Energy integrals (locals, like residual_drift_j): evaluated with the outputs, after them in _outputs().
+        n_outputs = len(outputs)
+        for k, (name, text) in enumerate(zip(ENERGY_NAMES, ENERGY_DOCS, strict=True)):
+            var = Real(name, description=text, causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
+                       getter=lambda index=n_outputs + k: self._outputs()[index])
+            self.register_variable(var)
+            self._output_index[var.value_reference] = n_outputs + k
+            self.fmi_units[name] = "J"
         # The master exchanges the same value references every step: fast paths for them.
         vr = {v.name: v.value_reference for v in self.vars.values()}
         self._ag_F = [vr["ag"], vr["F"]]
@@ -191,7 +214,7 @@ class ShearBuilding(Fmi2Slave):
             return [math.nan] * len(self._output_index)
         key = (self.ag, self.F, model.steps, id(model))
         if key != self._cache_key:
-            self._values = model.output_vector(self.ag, self.F).tolist()
+            self._values = model.output_vector(self.ag, self.F).tolist() + model.energies().tolist()
             self._cache_key = key
         return self._values
 
@@ -226,13 +249,18 @@ class ShearBuilding(Fmi2Slave):
 
     def exit_initialization_mode(self):
         self._model = None  # String and Integer parameters may have changed since the last build
+        # another FMU's copy of the shared building table with other code: refused (shared_copies)
         self._failed = ""
+        self._copy_problem = shared_copies.copy_problem((dyke_building,), self.resources)
+        if self._copy_problem:
+            self.log(self._copy_problem, Fmi2Status.error)
+            return
         self._building()  # logs invalid parameters; an exception here would be fmi2Fatal
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        model = self._building()
+        model = None if self._copy_problem else self._building()
         if model is None:
-            self.log(self._failed, Fmi2Status.error)
+            self.log(self._copy_problem or self._failed, Fmi2Status.error)
             return False
         if not (math.isfinite(self.ag) and math.isfinite(self.F)):
             self.log(

@@ -10,11 +10,14 @@ from __future__ import annotations
 import copy
 import math
 
+import dyke_building
+import mre_isolator_core
+import shared_copies
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Status
 from sosm_controller_core import IsolatorModel, SosmController, SosmGains
 
-FMU_CORE_MODULES = ("sosm_controller_core",)
+FMU_CORE_MODULES = ("sosm_controller_core", "mre_isolator_core", "dyke_building", "shared_copies")
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -108,9 +111,10 @@ class SosmCurrentController(Fmi2Slave):
 
     def exit_initialization_mode(self):
         # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
-        if self.mode not in MODES:
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        if not self._failed and self.mode not in MODES:
             self._failed = f"parameter mode = {self.mode!r} is not one of {MODES}"
-        else:
+        elif not self._failed:
             try:
                 self._controller = self._make_controller()
             except ValueError as exc:

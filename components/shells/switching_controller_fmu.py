@@ -47,7 +47,7 @@ class SwitchingCurrentController(Fmi2Slave):
         self.register_variable(Real("i_low", description="current while the base returns", **par))
         self.register_variable(Real("i_max", description="largest current", **par))
         self.register_variable(Real("i", description="command current", causality=Fmi2Causality.output,
-                                    variability=Fmi2Variability.continuous, getter=lambda: self._i))
+                                    variability=Fmi2Variability.discrete, getter=lambda: self._i))
 
     def exit_initialization_mode(self):
         # A problem is logged and fails the first step: an exception here would be fmi2Fatal.

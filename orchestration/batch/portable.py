@@ -27,12 +27,14 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.atomic_files import atomic_write_bytes
+from mre_common.private_cache import fallback_folder, folder_problem, note, remove_entry, trusted_folder
 from orchestration.master.resolve import SystemPlan
 
 PROJECT_DIR = Path(__file__).resolve().parents[2]
-# The code that decides any job's numbers: the engine and this layer's job plumbing. A study adds its own
-# (the physics, its job functions and metrics) through ``job_key(..., sources=...)``.
-CODE_SOURCES = ("orchestration/master", "orchestration/batch/jobs.py", "orchestration/batch/portable.py")
+# The code that decides any job's numbers: the engine (its folder: also the C sources it compiles) and every
+# project module the job plumbing imports. A study adds its job module (``module:<name>``: that module and all it
+# imports, orchestration.batch.code_sources) through ``job_key(..., sources=...)``.
+CODE_SOURCES = ("orchestration/master", "module:orchestration.batch.jobs", "module:orchestration.batch.portable")
 PACKAGE = "mre-cosim"
 
 
@@ -91,19 +93,43 @@ def file_bytes(plans: list[PortablePlan]) -> dict[str, Path]:
 
 
 def cache_root() -> Path:
-    """The worker's content-addressed file cache."""
-    return Path(tempfile.gettempdir()) / f"mre-cosim-files-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+    """The worker's content-addressed file cache: this user's private folder (mode 0700, owned, not a symlink;
+    else a folder of this process's own, with a note: :func:`mre_common.private_cache.trusted_folder`)."""
+    global _CACHE_ROOT
+    wanted = Path(tempfile.gettempdir()) / f"mre-cosim-files-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+    if _CACHE_ROOT is None or _CACHE_ROOT[0] != wanted:
+        _CACHE_ROOT = (wanted, trusted_folder(wanted))
+    return _CACHE_ROOT[1]
+
+
+_CACHE_ROOT: tuple[Path, Path] | None = None  # (the folder wanted, the folder used)
 
 
 def local_copy(ref: FileRef, data: bytes) -> Path:
-    """The cached copy of a file on this machine, written once (atomically) after checking its SHA-256."""
-    target = cache_root() / ref.sha256 / ref.name
-    if target.is_file():
-        return target
+    """The cached copy of a file on this machine, written once (atomically) after checking its SHA-256; a copy
+    found there is used only if it is a regular file (not a link) with that SHA-256, else written again (noted)."""
+    root = cache_root()
+    target = root / ref.sha256 / ref.name
+    if os.path.lexists(target):
+        if not target.is_symlink() and target.is_file() and file_sha256(target) == ref.sha256:
+            return target
+        note(root, f"{ref.sha256[:16]}.../{ref.name} is not the file of that SHA-256: writing it again")
+        remove_entry(target)
     if hashlib.sha256(data).hexdigest() != ref.sha256:
         raise FileCorrupted(f"{ref.name}: received bytes do not match SHA-256 {ref.sha256}")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(target, data, mode=0o600)  # this user's cache: readable by this user only
+    folder = target.parent
+    if os.path.lexists(folder) and folder_problem(folder) is not None:
+        note(root, f"{folder.name}: {folder_problem(folder)}: made again")
+        remove_entry(folder)
+    try:
+        os.makedirs(folder, mode=0o700, exist_ok=True)
+        atomic_write_bytes(target, data, mode=0o600)  # this user's cache: readable by this user only
+    except OSError as exc:  # a read-only or full cache: this process keeps its copies elsewhere (noted)
+        global _CACHE_ROOT
+        if _CACHE_ROOT is None or _CACHE_ROOT[1] != root:
+            raise
+        _CACHE_ROOT = (_CACHE_ROOT[0], fallback_folder(root, f"cannot be written ({exc.strerror or exc})"))
+        return local_copy(ref, data)
     return target
 
 
@@ -143,7 +169,8 @@ def installed_version() -> str:
 @lru_cache(maxsize=16)
 def code_version(sources: tuple[str, ...] = ()) -> str:
     """Package version and a SHA-256 over the sources that decide a job's numbers: CODE_SOURCES and ``sources``
-    (paths relative to the project, files or folders).
+    (paths relative to the project, files or folders, or ``module:<name>``: the project files that module imports,
+    :func:`orchestration.batch.code_sources.import_closure`).
 
     ``MRE_COSIM_CODE_VERSION`` pins it instead: to resume a study across an edit you know
     changes no number (at your own risk; the tests use it while others edit the checkout).
@@ -151,8 +178,10 @@ def code_version(sources: tuple[str, ...] = ()) -> str:
     if os.environ.get(CODE_VERSION_ENV):
         return os.environ[CODE_VERSION_ENV]
 
+    from orchestration.batch.code_sources import expand
+
     h = hashlib.sha256()
-    for entry in (*CODE_SOURCES, *sources):
+    for entry in expand((*CODE_SOURCES, *sources)):
         root = PROJECT_DIR / entry
         files = sorted(root.rglob("*")) if root.is_dir() else [root]
         for f in files:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.folder_claim import claim_folder, read_claim
-from orchestration.master.runfolder import write_json
+from orchestration.master.runfolder import strict_json_data, write_json
 
 KEPT_STATUSES = ("ok", "failed")
 RESUME_MARKER = ".resume-claim"
@@ -88,7 +88,7 @@ class ResultStore:
         """Store a result (atomically, with its key and checksum) if its status is worth keeping; True if stored."""
         if record.get("status") not in KEPT_STATUSES:
             return False
-        data = {k: v for k, v in record.items() if k != "checksum"}
+        data = strict_json_data({k: v for k, v in record.items() if k != "checksum"})  # as it reads back
         data["key"] = key
         write_json(self._path(key), {**data, "checksum": checksum(data)})
         return True
@@ -99,6 +99,55 @@ class ResultStore:
     def problems(self) -> list[str]:
         """Every entry of ``jobs/`` that is not a result the store wrote, one line each naming it."""
         return jobs_problems(self.folder)
+
+
+class SharedResultStore(ResultStore):
+    """Results kept across studies in this user's cache (``$MRE_COSIM_CACHE/results/jobs``): the folder must be
+    private (mode 0700, owned, not a symlink: :mod:`mre_common.private_cache`); an entry is used only if it is
+    what the store wrote for its key (its content key names the job's inputs and code, its checksum its
+    content), else removed and computed again, with a note naming the cache; a result that cannot be kept
+    (a read-only or full cache) is noted, never an error."""
+
+    def __init__(self, cache: Path) -> None:
+        from mre_common.private_cache import private_folder
+
+        self.folder = private_folder(private_folder(Path(cache)) / "jobs")
+
+    def get(self, key: str, strict: bool = False) -> dict[str, Any] | None:
+        from mre_common.private_cache import note, remove_entry
+
+        path = self._path(key)
+        if not os.path.lexists(path):
+            return None
+        problem = "is a symbolic link" if path.is_symlink() else stored_problem(path, key)
+        if problem is None:
+            try:
+                return json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:
+                problem = f"cannot be read ({exc})"
+        note(self.folder, f"{path.name} {problem}: not used (removed; computed again where needed)")
+        remove_entry(path)
+        return None
+
+    def put(self, key: str, record: dict[str, Any]) -> bool:
+        from mre_common.private_cache import note
+
+        try:
+            return super().put(key, record)
+        except OSError as exc:
+            note(self.folder, f"cannot keep a result ({exc.strerror or exc}); it is computed again next time")
+            return False
+
+
+def open_shared_store(cache: Path) -> SharedResultStore | None:
+    """:class:`SharedResultStore` at ``cache``, or None with a note naming it if it cannot be used."""
+    from mre_common.private_cache import note
+
+    try:
+        return SharedResultStore(cache)
+    except OSError as exc:
+        note(cache, f"{str(exc).removeprefix(f'cache {cache}').strip(' :')}; results are not kept across studies")
+        return None
 
 
 def jobs_problems(jobs: Path) -> list[str]:
@@ -125,7 +174,7 @@ INSIDE_RESERVE = 160
 def folder_problems(name: str, output: Path, out: Path | None) -> list[tuple[str, str]]:
     """(key, problem) for a study folder the file system cannot hold, checked in bytes against its own limits:
     the study's ``name`` (+ time stamp) inside ``output``, or the ``--out`` path, with room for the files inside."""
-    from mre_common.fs_limits import name_problem, path_problem
+    from mre_common.fs_limits import name_problem, path_problem, plain_name_problem
 
     found = []
     if out is not None:
@@ -133,7 +182,7 @@ def folder_problems(name: str, output: Path, out: Path | None) -> list[tuple[str
         if problem:
             found.append(("--out", problem))
         return found
-    problem = name_problem(name, output, STAMP_RESERVE)
+    problem = plain_name_problem(name) or name_problem(name, output, STAMP_RESERVE)
     if problem:
         found.append(("name", problem))
     problem = path_problem(output, INSIDE_RESERVE + STAMP_RESERVE + len(os.fsencode(name)))

@@ -17,6 +17,7 @@ Definitions (SI; level 0 = base floor, levels 1..n = storeys):
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -98,13 +99,15 @@ def indices(m: dict[str, float], off: dict[str, float]) -> dict[str, float]:
 
 
 def csv_text(columns: Sequence[str], rows: list[dict[str, Any]]) -> str:
-    """CSV text with the given columns (floats at full precision, missing as empty)."""
-    lines = [",".join(columns)]
+    """CSV text with the given columns (floats at full precision, missing as empty; text quoted where needed)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")  # quotes a cell only where it holds a comma or a quote
+    writer.writerow(columns)
     for row in rows:
         cells = []
         for c in columns:
             v = row.get(c)
             cells.append("" if v is None or (isinstance(v, float) and math.isnan(v)) else
                          (repr(float(v)) if isinstance(v, float | np.floating) else str(v)))
-        lines.append(",".join(cells))
-    return "\n".join(lines) + "\n"
+        writer.writerow(cells)
+    return buf.getvalue()

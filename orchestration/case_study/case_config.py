@@ -7,6 +7,7 @@ pydantic; every problem is reported as a :class:`~orchestration.master.errors.Sc
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -332,6 +333,64 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
             missing.append(Problem(f"strategy file {p.resolve()} does not exist", f"strategy_files.{k}", file, line))
     if not missing:
         missing = unknown_strategies(spec.strategies, study.library, lines, path, "strategies")
+    if not missing:
+        missing = folder_name_problems(study) + best_current_problems(study)
     if missing:
         raise ScenarioError(missing)
     return study
+
+
+def best_current_problems(study: LoadedStudy) -> list[Problem]:
+    """A listed strategy whose parameters use ``${best_current}`` while the study runs no best-constant sweep
+    (the sweep that finds that current), refused before anything is written."""
+    from orchestration.case_study.strategies import BEST
+
+    spec = study.spec
+    if "best-constant" in spec.strategies:
+        return []
+    out = []
+    for k, s in enumerate(spec.strategies):
+        params = study.strategy(s).entry.parameters or {}
+        uses = sorted(name for name, value in params.items() if value == BEST)
+        if uses:
+            file, line = study.lines.get(("strategies", k)) or study.lines.get(("strategies",)) or (
+                str(study.path), None)
+            out.append(Problem(f"strategy {s!r} sets {', '.join(uses)} = {BEST}, which only a study that lists "
+                               "'best-constant' (its current sweep) can fill in: add best-constant to strategies",
+                               f"strategies.{k}", file or str(study.path), line))
+    return out
+
+
+RUN_FILE_RESERVE = 48
+"""Bytes kept after a run folder's name for the study's own suffixes (``.tmp`` staging names)."""
+
+
+def folder_name_problems(study: LoadedStudy) -> list[Problem]:
+    """The ids that name run folders (``runs/<record>-<strategy>[--<variant>]``), checked to be plain names
+    within the file system's byte limit, at their keys' lines, before anything is written."""
+    from mre_common.fs_limits import name_problem, plain_name_problem
+
+    spec, lines, out = study.spec, study.lines, []
+
+    def add(message: str, *key: Any) -> None:
+        file, line = lines.get(tuple(key)) or lines.get(tuple(key[:1])) or (str(study.path), None)
+        out.append(Problem(message, ".".join(str(k) for k in key), file or str(study.path), line))
+
+    for r in spec.records:
+        if (problem := plain_name_problem(r)) is not None:
+            add(f"record id {problem}", "records", r)
+    for k, s in enumerate(spec.strategies):
+        if (problem := plain_name_problem(s)) is not None:
+            add(f"strategy {problem}", "strategies", k)
+    if out:
+        return out
+    variants = [""] + [f"--{v}" for v in (spec.robustness.variants if spec.robustness else {})]
+    longest = max(variants, key=lambda v: len(os.fsencode(v)))
+    folder = Path(spec.output)
+    for r in spec.records:
+        for k, s in enumerate(spec.strategies):
+            problem = name_problem(f"{r}-{s}{longest}", folder, RUN_FILE_RESERVE)
+            if problem is not None:
+                add(f"run folder runs/{r[:30]}-{s[:30]}{longest[:30]}: {problem}", "strategies", k)
+                return out
+    return out

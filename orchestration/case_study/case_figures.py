@@ -97,11 +97,14 @@ def current_figure(study: CaseStudyRecord, series: Series) -> Any:
             ts = series.get((r, s))
             if ts is not None:
                 ax.plot(ts["time"], ts["controller.i"], color=COLORS[s], lw=0.6)
+                if "coil.i" in ts:  # a plant with a coil lag: the device current, dashed, beside the command
+                    ax.plot(ts["time"], ts["coil.i"], color="0.2", lw=0.5, ls="--")
             ax.axhline(hi, color="0.5", ls="--", lw=0.8)
             ax.axhline(limit, color="0.5", ls=":", lw=0.8)
             ax.set(ylabel="i [A]", ylim=(-0.1, i_max * 1.08))
+            device = ", dark dashed: the device current" if ts is not None and "coil.i" in ts else ""
             ax.set_title(f"{named(study, r)}: {s} current (dashed {hi:g} A as in the paper, dotted its limit "
-                         f"{limit:g} A)", fontsize=9)
+                         f"{limit:g} A{device})", fontsize=9)
             ax.grid(alpha=0.3)
         axes[-1, col].set_xlabel("time [s]")
     fig.tight_layout()

@@ -22,9 +22,9 @@ OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 # A controller benchmark records the floors' velocities too (the input energy of its criterion J9).
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
                                                        "ground.ag")) + "]")
-# The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key).
-CODE_SOURCES = ("components/physics", "orchestration/case_study/case_jobs.py", "orchestration/case_study/analysis.py",
-                "orchestration/case_study/tuning.py")  # tuning.py: system_setup and sweep_currents decide the numbers
+# The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key): every
+# project module this one imports, directly or through others, also inside the job functions (code_sources).
+CODE_SOURCES = ("module:orchestration.case_study.case_jobs",)
 
 
 def cosim_job(payload: dict[str, Any]) -> dict[str, Any]:

@@ -3,6 +3,7 @@ reference.csv, all from the study folder (``study.json`` and the runs' ``timeser
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -18,13 +19,14 @@ from orchestration.case_study.analysis import (
     run_metrics,
 )
 from orchestration.case_study.case_config import UNCONTROLLED
-from orchestration.case_study.case_records import CaseStudyRecord
+from orchestration.case_study.case_records import CaseStudyRecord, RunEntry
 from orchestration.master.runfolder import write_text
 
 REFERENCE_KEYS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "acc_0", "acc_1", "acc_2", "acc_3",
                   "base_shear_N")
 SWEEP_COLUMNS = ("record", "current_A", "x0", "d", "a3", "J", "best")
 REFERENCE_COLUMNS = ("record", "strategy", "peak", "cosim", "radau", "rel_error")
+PEAK_TABLE_COLUMNS = (*PEAK_COLUMNS, "valid", "invalid_reasons")  # peaks.csv: the peaks, then numerical validity
 
 Metrics = dict[tuple[str, str], dict[str, float]]  # (record, strategy) -> metric -> value
 Series = dict[tuple[str, str], dict[str, np.ndarray]]  # (record, strategy) -> column -> samples
@@ -63,6 +65,7 @@ def load_metrics(folder: Path, study: CaseStudyRecord) -> tuple[Metrics, Series]
             run.error = f"{path} is missing"
             continue
         key = (run.record, run.strategy)
+        read_validity(folder / run.folder, run)
         series[key] = read_timeseries(path)
         metrics[key] = m = run_metrics(series[key], study.records[run.record].masses_kg)
         t, i = series[key]["time"], series[key]["controller.i"]
@@ -72,7 +75,64 @@ def load_metrics(folder: Path, study: CaseStudyRecord) -> tuple[Metrics, Series]
         limit = current_limit(study, run.strategy)
         m["current_limit_A"] = limit
         m.update(current_shares(i, limit, hi))
+    apply_step_check(folder, study)
     return metrics, series
+
+
+def read_validity(run_folder: Path, run: RunEntry) -> None:
+    """A run's numerical validity and energy section from its summary.json, into its entry (a run folder written
+    before runs said so, or without a readable summary: validity unknown, None)."""
+    try:
+        summary = json.loads((run_folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return
+    if not isinstance(summary, dict) or "valid" not in summary:
+        return
+    run.valid = bool(summary["valid"])
+    run.invalid_reasons = [str(r) for r in summary.get("invalid_reasons") or []]
+    run.energy = summary.get("energy")
+
+
+def _summary(run_folder: Path) -> dict[str, Any] | None:
+    try:
+        summary = json.loads((run_folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if isinstance(summary, dict) else None
+
+
+def apply_step_check(folder: Path, study: CaseStudyRecord) -> None:
+    """``--verify-step``: each run's peaks against its run at half the plant's step; a run whose largest change is
+    above the tolerance (1 %, :data:`~orchestration.building_report.DEFAULT_STEP_TOLERANCE`) is not converged in
+    the step: numerically invalid, with that reason. A half-step run that did not end: the step is not checked."""
+    from orchestration.building_report import DEFAULT_STEP_TOLERANCE
+    from orchestration.step_check import step_section
+
+    for half in study.half_step_runs:
+        base = next((e for e in study.runs if e.key == half.key.removesuffix("/half-step")), None)
+        if base is None or not base.ok:
+            continue
+        coarse, fine = _summary(folder / base.folder), _summary(folder / half.folder)
+        if coarse is None or fine is None:
+            continue
+        _, reasons = step_section(coarse, fine, {}, DEFAULT_STEP_TOLERANCE, half.folder)
+        if reasons and base.valid is not None and not any(r.startswith("step not converged")
+                                                           for r in base.invalid_reasons):
+            base.valid = False
+            base.invalid_reasons = [*base.invalid_reasons, *reasons]
+
+
+def validity_columns(run: RunEntry | None) -> dict[str, Any]:
+    """The ``valid`` and ``invalid_reasons`` cells of a run's rows (empty where validity is unknown)."""
+    if run is None or run.valid is None:
+        return {"valid": None, "invalid_reasons": None}
+    return {"valid": run.valid, "invalid_reasons": "; ".join(run.invalid_reasons)}
+
+
+def judged(study: CaseStudyRecord, metrics: Metrics) -> Metrics:
+    """The metrics of the runs a report may rank and judge: every run not known to be numerically invalid."""
+    invalid = {(run.record, run.strategy) for run in study.runs if run.valid is False}
+    return {k: m for k, m in metrics.items() if k not in invalid}
 
 
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
@@ -96,12 +156,16 @@ def peak_and_index_rows(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[
             m = metrics.get((r, s))
             if m is None:
                 continue
-            peak_rows.append({"record": r, "strategy": s, **m})
+            peak_rows.append({"record": r, "strategy": s, **m, **validity_columns(_run(study, r, s))})
             if off is not None:
                 idx = indices(m, off)
                 study.indices[f"{r}/{s}"] = idx
                 index_rows.append({"record": r, "strategy": s, **idx})
     return peak_rows, index_rows
+
+
+def _run(study: CaseStudyRecord, record: str, strategy: str) -> RunEntry | None:
+    return next((e for e in study.runs if e.record == record and e.strategy == strategy), None)
 
 
 def sweep_rows(study: CaseStudyRecord) -> list[dict[str, Any]]:
@@ -126,7 +190,7 @@ def reference_rows(study: CaseStudyRecord, metrics: Metrics) -> list[dict[str, A
 def write_tables(folder: Path, study: CaseStudyRecord, metrics: Metrics) -> None:
     """peaks.csv, indices.csv, and sweep.csv and reference.csv if the study has them."""
     peak_rows, index_rows = peak_and_index_rows(study, metrics)
-    write_text(folder / "peaks.csv", csv_text(PEAK_COLUMNS, peak_rows))
+    write_text(folder / "peaks.csv", csv_text(PEAK_TABLE_COLUMNS, peak_rows))
     write_text(folder / "indices.csv", csv_text(INDEX_COLUMNS, index_rows))
     if study.sweep:
         write_text(folder / "sweep.csv", csv_text(SWEEP_COLUMNS, sweep_rows(study)))

@@ -17,7 +17,7 @@ from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, 
 from orchestration.case_study.case_records import PreparedStudy, RecordInfo
 from orchestration.case_study.robustness_plan import check_variants
 from orchestration.case_study.strategies import check_strategy
-from orchestration.case_study.tuning import read_gains, run_overrides, system_setup
+from orchestration.case_study.tuning import monolithic_problem, read_gains, run_overrides, system_setup
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError
 from orchestration.master.yaml_source import load_tree
@@ -61,7 +61,9 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
         raise ScenarioError(problems)
     plan = plans[UNCONTROLLED]
     sim = plan.loaded.scenario.simulation
-    needs_model = "best-constant" in spec.strategies or spec.reference.enabled
+    # the in-process model: for the Radau reference, and for the sweep on the paper's system (another plant's sweep
+    # co-simulates its FMUs, tuning.sweep_currents)
+    needs_model = spec.reference.enabled or ("best-constant" in spec.strategies and monolithic_problem(plan) is None)
     setup = system_setup(plan, 0.0) if needs_model else None
     masses = list(setup.building.m) if setup else list(BuildingParams.dyke().m)
     ground = plan.parameters.get("ground", {})

@@ -58,12 +58,21 @@ class RunEntry:
     wall_time_s: float | None = None
     unit_warnings: dict[str, Any] | None = None
     variant: str | None = None  # the robustness variant it runs (None: the study's own, nominal run)
+    # numerical validity, from the run's summary.json (None: not read, a run without one)
+    valid: bool | None = None
+    invalid_reasons: list[str] = field(default_factory=list)
+    energy: dict[str, Any] | None = None  # the summary's energy section (J9 comes from it)
+    step_change: dict[str, float] | None = None  # --verify-step: criterion -> relative change at half the step
 
     def to_json(self) -> dict[str, Any]:
         out = {"key": self.key, "record": self.record, "strategy": self.strategy, "folder": self.folder,
                "ok": self.ok, "error": self.error}
         if self.variant is not None:
             out["variant"] = self.variant
+        if self.valid is not None:
+            out.update(valid=self.valid, invalid_reasons=self.invalid_reasons, energy=self.energy)
+        if self.step_change is not None:
+            out["step_change"] = self.step_change
         if self.overrides is not None:
             out.update(current_A=self.current_A, overrides=self.overrides)
         if self.status is not None:
@@ -74,7 +83,8 @@ class RunEntry:
     def from_json(cls, d: dict[str, Any]) -> RunEntry:
         return cls(d["key"], d["record"], d["strategy"], d["folder"], bool(d.get("ok")), d.get("error"),
                    d.get("current_A"), d.get("overrides"), d.get("status"), d.get("wall_time_s"),
-                   d.get("unit_warnings"), d.get("variant"))
+                   d.get("unit_warnings"), d.get("variant"), d.get("valid"), list(d.get("invalid_reasons") or []),
+                   d.get("energy"), d.get("step_change"))
 
 
 @dataclass(frozen=True)
@@ -157,10 +167,12 @@ class CaseStudyRecord:
     interrupted: bool | None = None
     metrics: dict[str, dict[str, float]] | None = None  # record/strategy -> metrics (written by the report)
     variant_runs: list[RunEntry] = field(default_factory=list)  # robustness variants: record/strategy/variant
+    half_step_runs: list[RunEntry] = field(default_factory=list)  # --verify-step: record/strategy/half-step
 
     def run(self, key: str) -> RunEntry:
-        """The run entry of ``record/strategy`` (or of a robustness variant, ``record/strategy/variant``)."""
-        return next(e for e in (*self.runs, *self.variant_runs) if e.key == key)
+        """The run entry of ``record/strategy`` (or of a robustness variant, ``record/strategy/variant``, or of
+        a run at half the plant's step, ``record/strategy/half-step``)."""
+        return next(e for e in (*self.runs, *self.variant_runs, *self.half_step_runs) if e.key == key)
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -181,6 +193,8 @@ class CaseStudyRecord:
             out["metrics"] = self.metrics
         if self.variant_runs:
             out["variant_runs"] = [e.to_json() for e in self.variant_runs]
+        if self.half_step_runs:
+            out["half_step_runs"] = [e.to_json() for e in self.half_step_runs]
         return out
 
     @classmethod
@@ -198,4 +212,5 @@ class CaseStudyRecord:
             reference={k: ReferenceOutcome.from_json(v) for k, v in (d.get("reference") or {}).items()},
             runs=[RunEntry.from_json(e) for e in d.get("runs", [])], indices=d.get("indices") or {},
             jobs_computed=d.get("jobs_computed", 0), resumed=d.get("resumed"), interrupted=d.get("interrupted"),
-            metrics=d.get("metrics"), variant_runs=[RunEntry.from_json(e) for e in d.get("variant_runs", [])])
+            metrics=d.get("metrics"), variant_runs=[RunEntry.from_json(e) for e in d.get("variant_runs", [])],
+            half_step_runs=[RunEntry.from_json(e) for e in d.get("half_step_runs", [])])

@@ -22,7 +22,14 @@ from components.physics.sosm_controller_core import IsolatorModel, SosmGains
 from orchestration.case_study.analysis import INDEX_COLUMNS, INDEX_MEANING, PEAK_COLUMNS
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_figures import make_figures
-from orchestration.case_study.case_metrics import REFERENCE_KEYS, Metrics, Series, load_metrics, write_tables
+from orchestration.case_study.case_metrics import (
+    REFERENCE_KEYS,
+    Metrics,
+    Series,
+    judged,
+    load_metrics,
+    write_tables,
+)
 from orchestration.case_study.case_records import CaseStudyRecord, RecordInfo
 from orchestration.case_study.case_rendering import TIE, Block, compare, fmt, pct, to_html, to_markdown
 from orchestration.case_study.claims import PINNED_SHARE, check_claims
@@ -93,6 +100,20 @@ def failed_blocks(study: CaseStudyRecord) -> list[Block]:
             Block("p", "These jobs failed; every other result below is complete."),
             Block("table", header=["run", "reason"],
                   rows=[[key, str(error or "?").replace("|", "/")] for key, error in failed])]
+
+
+def invalid_blocks(study: CaseStudyRecord) -> list[Block]:
+    """The runs that ended but are numerically invalid: listed with their reasons, not ranked or judged."""
+    bad = [run for run in sorted([*study.runs, *study.variant_runs], key=lambda run: _order(run.key, study))
+           if run.ok and run.valid is False]
+    if not bad:
+        return []
+    return [Block("h", "Numerically invalid runs", level=2),
+            Block("p", "These runs ended, but their numbers cannot be trusted (energy balance, coupling energy "
+                       "error, non-finite values or step convergence: docs/running.md, \"Validity\"). Their peaks "
+                       "are in the tables (peaks.csv, column valid); no ranking, claim or verdict uses them."),
+            Block("table", header=["run", "reason"],
+                  rows=[[run.key, "; ".join(run.invalid_reasons).replace("|", "/")] for run in bad])]
 
 
 def gains_blocks(study: CaseStudyRecord) -> list[Block]:
@@ -369,8 +390,9 @@ def sweep_blocks(study: CaseStudyRecord) -> list[Block]:
     o = cfg["objective"]
     return [
         Block("h", "Best constant current", level=2),
-        Block("p", f"Swept {cfg['sweep_currents'][0]:g}-{cfg['sweep_currents'][-1]:g} A in the in-process "
-                   f"model; objective J = {o['w_acc']:g}·a_3/a_3,off + {o['w_drift']:g}·d/d_off + "
+        Block("p", f"Swept {cfg['sweep_currents'][0]:g}-{cfg['sweep_currents'][-1]:g} A (the in-process "
+                   "model on the paper's system, a co-simulation per current on any other plant); "
+                   f"objective J = {o['w_acc']:g}·a_3/a_3,off + {o['w_drift']:g}·d/d_off + "
                    f"{o['penalty']:g}·max(0, x_0/{1e3 * o['x_limit']:g} mm − 1). The best current is chosen "
                    "per record in hindsight: an upper bound on what a passive setting can do."),
         Block("table", header=["record", "best current A", "J best", "J at i_max"],
@@ -405,9 +427,11 @@ def figure_blocks(folder: Path, figures: dict[str, Path]) -> list[Block]:
 def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures: dict[str, Path],
                  series: Series | None = None) -> list[Block]:
     """The report's blocks: provenance, claims check, verdicts, tables, figures, failures."""
-    return [*header_blocks(folder, study), *failed_blocks(study), Block("p", ground_reading(study.records)),
-            *gains_blocks(study), *claims_blocks(study, metrics), *gain_set_blocks(study, metrics),
-            *sosm_condition_blocks(study, series or {}), *verdict_blocks(study, metrics),
+    valid = judged(study, metrics)  # ranked and judged: the numerically valid runs only
+    return [*header_blocks(folder, study), *failed_blocks(study), *invalid_blocks(study),
+            Block("p", ground_reading(study.records)),
+            *gains_blocks(study), *claims_blocks(study, valid), *gain_set_blocks(study, valid),
+            *sosm_condition_blocks(study, series or {}), *verdict_blocks(study, valid),
             *tables_blocks(study, metrics), *reference_blocks(study, metrics), *sweep_blocks(study),
             *warning_blocks(study, metrics), *figure_blocks(folder, figures)]
 

@@ -53,7 +53,7 @@ from orchestration.case_study.case_records import (
 )
 from orchestration.case_study.case_report import read_study, write_outputs
 from orchestration.case_study.robustness_plan import VariantPlanner, variants
-from orchestration.case_study.tuning import NotMonolithic, read_gains, run_overrides
+from orchestration.case_study.tuning import NotMonolithic, monolithic_problem, read_gains, run_overrides
 from orchestration.engine_hooks import require_kind
 from orchestration.master.errors import ScenarioError
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
@@ -72,6 +72,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--verify", action="store_true",
                         help="compute the Radau references of the passive runs that are not cached yet (by default "
                              "only cached ones are reported: they do not change between studies)")
+    parser.add_argument("--verify-step", action="store_true",
+                        help="run every co-simulation again with the plant's step halved and the controller's period "
+                             "fixed: each criterion's change goes into criteria.csv and the report, a verdict closer "
+                             "than it is a tie, a run whose peaks move more than 1 %% is not converged (invalid)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
     parser.add_argument("--resume", type=Path, metavar="DIR",
@@ -129,20 +133,21 @@ def new_record(study: LoadedStudy, prepared: PreparedStudy, pool: BatchPool, com
 def shared_store() -> ResultStore | None:
     """The results kept across studies (``$MRE_COSIM_CACHE/results/jobs``, by content key), or None if no cache."""
     from mre_common.c_compile import NoCacheFolder, cache_dir
+    from orchestration.batch.store import open_shared_store
 
     try:
-        return ResultStore(cache_dir() / "results")
-    except (NoCacheFolder, OSError):
+        return open_shared_store(cache_dir() / "results")  # private, verified; a damaged entry computed again
+    except NoCacheFolder:
         return None
 
 
-def count_jobs(spec: StudySpec, verify: bool = True) -> int:
-    """Jobs of a study: sweeps, co-simulations and (``verify``) references."""
+def count_jobs(spec: StudySpec, verify: bool = True, verify_step: bool = False) -> int:
+    """Jobs of a study: sweeps, co-simulations (twice with ``verify_step``) and (``verify``) references."""
     n = len(spec.records)
     references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
     references *= verify
     n_variants = len(spec.robustness.variants) if spec.robustness is not None else 0
-    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + n_variants)
+    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + n_variants + verify_step)
             + n * references)
 
 
@@ -244,8 +249,9 @@ def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
     spec, record = study.spec, runner.record
     extra = {"currents": spec.sweep.currents(spec.i_max), "objective": spec.objective.model_dump()}
     base = run_overrides(spec)
-    runner.run(sweep_job, [plan_job(study, f"{r}/sweep", "sweep", base, extra) for r in record.records],
-               isolate=False)
+    jobs = [plan_job(study, f"{r}/sweep", "sweep", base, extra) for r in record.records]
+    # in the worker for the in-process physics; in a child process when a plant's sweep co-simulates its FMUs
+    runner.run(sweep_job, jobs, isolate=any(monolithic_problem(pp.plan) is not None for _, _, pp, _ in jobs))
     for r in record.records:
         res = runner.collected.get(f"{r}/sweep")
         if res is not None:
@@ -314,9 +320,31 @@ def plan_variant_runs(study: LoadedStudy, runner: JobRunner) -> list[PlannedJob]
     return jobs
 
 
+def plan_half_step_runs(study: LoadedStudy, runner: JobRunner, runs: list[PlannedJob]) -> list[PlannedJob]:
+    """``--verify-step``: every co-simulation again with the plant's step halved and the controller's period pinned
+    (:func:`orchestration.step_check.half_step_overrides`), its entry ``record/strategy/half-step`` added."""
+    from orchestration.step_check import half_step_overrides
+
+    record, jobs = runner.record, []
+    for label, _key, pp, _extra in runs:
+        entry = record.run(label)
+        extra, _pinned = half_step_overrides(pp.plan)
+        half = RunEntry(f"{label}/half-step", entry.record, entry.strategy, f"{entry.folder}--half-step",
+                        current_A=entry.current_A, overrides=[*(entry.overrides or []), *extra])
+        record.half_step_runs.append(half)
+        outputs = OUTPUTS_OVERRIDE if study.spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
+        try:
+            jobs.append(plan_job(study, half.key, "cosim", (*run_overrides(study.spec), *(entry.overrides or []),
+                                                           outputs, *extra), {}))
+        except ScenarioError as exc:  # e.g. a controller that cannot step at its own rate: this check only fails
+            half.error = f"the half-step run cannot be made: {exc}"
+            runner.done(JobResult(half.key, False, error=half.error, status="failed"), stored=True)
+    return jobs
+
+
 def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
     """The finished jobs into the run entries and references (a run without a result: not run)."""
-    for entry in [*record.runs, *record.variant_runs]:
+    for entry in [*record.runs, *record.variant_runs, *record.half_step_runs]:
         res = results.get(entry.key)
         if res is None:
             entry.error = entry.error or "not run (interrupted)"
@@ -335,7 +363,8 @@ def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
 
 
 def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, progress: bool,
-              command: list[str], resumed: CaseStudyRecord | None = None, verify: bool = False) -> int:
+              command: list[str], resumed: CaseStudyRecord | None = None, verify: bool = False,
+              verify_step: bool = False) -> int:
     """Run every job of a prepared study into ``folder`` on ``pool``; returns the exit code.
 
     Each job's result is stored under its content key (:class:`ResultStore`); with ``resumed``
@@ -348,7 +377,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     (folder / "logs").mkdir(exist_ok=True)
     (folder / "runs").mkdir(exist_ok=True)
     write_json(folder / "study.json", record.to_json())
-    bar = ProgressBar(count_jobs(spec, verify), spec.name, enabled=progress)
+    bar = ProgressBar(count_jobs(spec, verify, verify_step), spec.name, enabled=progress)
     bar.write(pool.describe())
     runner = JobRunner(folder, record, spec, pool, bar)
     interrupted = False
@@ -356,7 +385,8 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
         if "best-constant" in spec.strategies:
             run_sweeps(study, runner)
         runs, references = plan_runs(study, runner)
-        runner.run(cosim_job, [*runs, *plan_variant_runs(study, runner)], isolate=True)
+        half = plan_half_step_runs(study, runner, runs) if verify_step else []
+        runner.run(cosim_job, [*runs, *plan_variant_runs(study, runner), *half], isolate=True)
         skipped = runner.run(reference_job, references, isolate=False, cache=shared_store(), compute=verify)
         record.provenance["references_not_computed"] = skipped  # neither cached nor asked for (--verify)
     except KeyboardInterrupt:
@@ -368,7 +398,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     write_json(folder / "study.json", record.to_json())
     bar.close()
     write_outputs(folder, record)
-    failed = [e.key for e in [*record.runs, *record.variant_runs] if not e.ok]
+    failed = [e.key for e in [*record.runs, *record.variant_runs, *record.half_step_runs] if not e.ok]
     failed += [k for k, v in {**record.sweep, **record.reference}.items() if not v.ok]
     print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
     return 1 if failed or interrupted else 0
@@ -466,7 +496,7 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
     try:
         return run_study(study, folder, prepared, pool, not args.quiet, [sys.executable, *sys.argv], resumed,
-                         verify=args.verify)
+                         verify=args.verify, verify_step=args.verify_step or bool(resumed and resumed.half_step_runs))
     finally:
         pool.close()
         if claim is not None:

@@ -2,9 +2,11 @@
 
 The overrides come after the study's and the strategy's (:func:`case_plan.run_strategy_overrides`):
 
-* ``plant``: ``units.<unit>.fmu=<path>``;
+* ``plant``: ``units.<unit>.fmu=<path>``; with parameters, ``units.<unit>.parameters=<json>`` (replacing the
+  unit's) and the study's overrides of that unit again (its current limit). The unit must be in the record's
+  scenario and the swap must change it;
 * ``scale``: ``<unit>.<parameter>=<factor x nominal>``, the nominal value read from the record's scenario
-  planned with the variant's plant (its parameter, else the FMU's start value);
+  planned with the variant's plant (its parameter, else the FMU's start value), which must not be 0;
 * ``sensors``: a ``SensorChannels`` unit named ``sensors``; every connection into the controller
   ``src -> controller.in`` becomes ``src -> sensors.u_<q>_<k>`` (``delayed`` when the delay is >= 1,
   so the unit stores the sample at each communication point; plain with no delay, so its output is
@@ -12,7 +14,8 @@ The overrides come after the study's and the strategy's (:func:`case_plan.run_st
   ``sensors.y_<q>_<k> -> controller.in`` (as the original was, ``delayed``). The channel's quantity
   ``q`` follows the SI unit the source variable declares (m, m/s, m/s2, N);
 * ``current_lag`` > 0: a ``CurrentLag`` unit named ``current_lag``: ``controller.i -> current_lag.i_cmd``
-  and ``current_lag.i -> <every former target of controller.i>``.
+  and ``current_lag.i -> <every former target of controller.i>`` (in series with a scenario's own coil lag;
+  that one is varied by ``scale``).
 
 The controller unit keeps its own parameters: a variant that names it is refused.
 """
@@ -26,7 +29,7 @@ from typing import Any
 
 from mre_common.fs_limits import path_problem
 from orchestration.case_study.case_config import LoadedStudy
-from orchestration.case_study.robustness_config import VariantSpec
+from orchestration.case_study.robustness_config import PlantUnit, VariantSpec
 from orchestration.case_study.strategies import CONTROLLER
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import plan_scenario
@@ -85,10 +88,26 @@ def _unit(port: str) -> str:
     return str(port).strip().split(".")[0]
 
 
-def plant_overrides(study: LoadedStudy, name: str) -> tuple[str, ...]:
-    """``units.<unit>.fmu=...`` of the variant's plant swaps."""
-    spec = variants(study)[name]
-    return tuple(f"units.{u}.fmu={_path(study, f, *_key(name, 'plant', u))}" for u, f in spec.plant.items())
+def _plant_fmu(study: LoadedStudy, name: str, unit: str) -> Path:
+    """The FMU file of a variant's swap of ``unit``, absolute."""
+    entry = variants(study)[name].plant[unit]
+    if isinstance(entry, PlantUnit):
+        return _path(study, entry.fmu, *_key(name, "plant", unit, "fmu"))
+    return _path(study, entry, *_key(name, "plant", unit))
+
+
+def plant_overrides(study: LoadedStudy, name: str, base: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """``units.<unit>.fmu=...`` of the variant's plant swaps; for a swap with its parameters,
+    ``units.<unit>.parameters={...}`` and then the ``base`` overrides of that unit's parameters again (the study's
+    current limit)."""
+    out = []
+    for u, entry in variants(study)[name].plant.items():
+        out.append(f"units.{u}.fmu={_plant_fmu(study, name, u)}")
+        if isinstance(entry, PlantUnit):
+            out.append(f"units.{u}.parameters={json.dumps(entry.parameters)}")
+            out += [o for o in base if o.partition("=")[0].strip().split(".")[0] == u
+                    and o.partition("=")[0].count(".") == 1]
+    return tuple(out)
 
 
 def _fmu_file_problem(path: Path) -> str | None:
@@ -116,24 +135,27 @@ class VariantPlanner:
             self._trees[record] = load_tree(self.study.scenario_path(record))[0]
         return self._trees[record]
 
-    def _plan(self, record: str, name: str) -> Any:
-        """The record's scenario planned with the study's overrides and the variant's plant (its descriptions)."""
-        key = (record, name)
+    def _plan(self, record: str, name: str | None) -> Any:
+        """The record's scenario planned with the study's overrides and the variant's plant (its descriptions);
+        ``name`` None: the nominal plant."""
+        key = (record, name or "")
+        if key not in self._plans and name is None:
+            self._plans[key] = plan_scenario(self.study.scenario_path(record), self.base)
         if key not in self._plans:
-            self._plans[key] = plan_scenario(self.study.scenario_path(record), (*self.base,
-                                                                                *plant_overrides(self.study, name)))
+            self._plans[key] = plan_scenario(self.study.scenario_path(record),
+                                             (*self.base, *plant_overrides(self.study, name, self.base)))
         return self._plans[key]
 
     def static_problems(self, name: str) -> list[Problem]:
         """Problems of a variant that need no scenario: controller named, FMU files missing, unit names taken."""
         study, spec = self.study, variants(self.study)[name]
         out = []
-        for u, f in spec.plant.items():
+        for u in spec.plant:
             if u == CONTROLLER:
                 out.append(problem(study, "the controller cannot be swapped (a variant changes the plant, the "
                                           "controller keeps its nominal design)", name, "plant", u))
             else:
-                text = _fmu_file_problem(_path(study, f, *_key(name, "plant", u)))
+                text = _fmu_file_problem(_plant_fmu(study, name, u))
                 if text is not None:
                     out.append(problem(study, text, name, "plant", u))
         for k in spec.scale:
@@ -147,8 +169,19 @@ class VariantPlanner:
         cannot be applied (a parameter or signal the plant lacks, a signal without its noise RMS, ...)."""
         study, spec = self.study, variants(self.study)[name]
         problems: list[Problem] = []
-        out = list(plant_overrides(study, name))
+        out = list(plant_overrides(study, name, self.base))
+        nominal = self._plan(record, None)
+        missing = [problem(study, f"{record}: the scenario has no unit {u!r} (units: "
+                                  f"{', '.join(sorted(nominal.descriptions))}): the swap would change nothing",
+                           name, "plant", u) for u in spec.plant if u not in nominal.descriptions]
+        if missing:  # before planning the swap: a unit of its own would not even be connected
+            raise ScenarioError(missing)
         plan = self._plan(record, name)
+        for u, entry in spec.plant.items():
+            if (Path(nominal.fmu_paths[u]).resolve() == _plant_fmu(study, name, u)
+                  and (not isinstance(entry, PlantUnit) or plan.parameters.get(u) == nominal.parameters.get(u))):
+                problems.append(problem(study, f"{record}: {u} is that FMU already, with the same parameters: the "
+                                               "swap would change nothing", name, "plant", u))
         for k, factor in spec.scale.items():
             unit, _, param = k.partition(".")
             desc = plan.descriptions.get(unit)
@@ -162,6 +195,10 @@ class VariantPlanner:
             except (TypeError, ValueError):
                 problems.append(problem(study, f"{record}: {k} has no numeric nominal value ({nominal!r})", name,
                                         "scale", k))
+                continue
+            if value == 0:
+                problems.append(problem(study, f"{record}: {k} is 0 on the nominal plant: scaling it changes nothing",
+                                        name, "scale", k))
                 continue
             out.append(f"{k}={value!r}")
         units = self._tree(record).get("units") or {}

@@ -26,6 +26,7 @@ from typing import Any
 from mre_common.atomic_files import atomic_write_text
 from orchestration.case_study.analysis import read_timeseries
 from orchestration.case_study.benchmark_criteria import raw_criteria
+from orchestration.case_study.case_metrics import read_validity
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.case_rendering import Block, fmt
 
@@ -49,8 +50,10 @@ def robustness_rows(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str, s
         if not e.ok and e.status is None:
             continue  # not run (an interrupted study): no row; --resume runs it
         path = folder / e.folder / "timeseries.csv"
+        read_validity(folder / e.folder, e)  # J9 from the run's energy section
         vraw[(e.record, e.strategy, e.variant or "")] = (
-            raw_criteria(read_timeseries(path), study.records[e.record].masses_kg) if e.ok and path.is_file() else None)
+            raw_criteria(read_timeseries(path), study.records[e.record].masses_kg, e.energy)
+            if e.ok and path.is_file() else None)
     rows = []
     for s in study.strategies:
         for v in [NOMINAL, *variant_names(study)]:

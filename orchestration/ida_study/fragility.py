@@ -144,3 +144,57 @@ def fit_fragility(stripes: list[Stripe], confidence: float = 0.95) -> Fit:
     if not x[0] <= math.exp(mu) <= x[-1]:
         note = f"median {math.exp(mu):.3g} outside the ladder {x[0]:.3g}-{x[-1]:.3g}: extrapolated"
     return Fit("fit", math.exp(mu), beta, cov, confidence, stripes=stripes, note=note)
+
+
+STROKE_QUANTITY = "isolator_displacement"
+
+
+def stroke_limit_state(limit_states: dict[str, tuple[str, float]]) -> str | None:
+    """The limit state of the device's stroke: of those on the isolator displacement (name -> (quantity,
+    threshold [m])), the one with the largest threshold (the device limit); None if there is none."""
+    on_stroke = [(threshold, name) for name, (quantity, threshold) in limit_states.items()
+                 if quantity == STROKE_QUANTITY]
+    return max(on_stroke)[1] if on_stroke else None
+
+
+@dataclass(frozen=True)
+class StrokeCapacity:
+    """The intensity up to which the device stays within its stroke: the median of the stroke fragility [IM unit].
+
+    ``kind`` as :class:`Fit`. 'fit': ``median`` with its confidence interval [``low``, ``high``] (the lognormal
+    fit's, :meth:`Fit.theta_interval`). 'separated': no median, the interval is the two levels it lies between.
+    'none-exceed': never left the stroke: the median is above the ladder (``low`` its top, ``high`` infinite).
+    'all-exceed': left it at every level: the median is below the ladder (``low`` 0, ``high`` its bottom).
+    """
+
+    kind: str
+    median: float
+    low: float
+    high: float
+
+    def text(self, unit: str = "g", confidence: float = 0.95) -> str:
+        """In words, e.g. ``0.128 g (95 % interval 0.10-0.16 g)``."""
+        if self.kind == "fit":
+            return f"{self.median:.3g} {unit} ({100 * confidence:g} % interval {self.low:.3g}-{self.high:.3g} {unit})"
+        if self.kind == "separated":
+            return f"between {self.low:g} and {self.high:g} {unit}"
+        if self.kind == "none-exceed":
+            return f"within its stroke up to {self.low:g} {unit} (the whole ladder)"
+        if self.kind == "all-exceed":
+            return f"beyond its stroke from the lowest level ({self.high:g} {unit}) on"
+        return "no fit"
+
+
+def stroke_capacity(fit: Fit) -> StrokeCapacity:
+    """The stroke capacity of a fitted stroke fragility (see :class:`StrokeCapacity`)."""
+    levels = sorted(s.level for s in fit.stripes if s.n > 0)
+    if fit.ok:
+        lo, hi = fit.theta_interval()
+        return StrokeCapacity("fit", fit.theta, lo, hi)
+    if fit.kind == "separated":
+        return StrokeCapacity("separated", math.nan, *fit.bounds)
+    if fit.kind == "none-exceed" and levels:
+        return StrokeCapacity("none-exceed", math.nan, levels[-1], math.inf)
+    if fit.kind == "all-exceed" and levels:
+        return StrokeCapacity("all-exceed", math.nan, 0.0, levels[0])
+    return StrokeCapacity(fit.kind, math.nan, math.nan, math.nan)

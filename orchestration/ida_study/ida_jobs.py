@@ -15,8 +15,9 @@ LIMIT_MARK = "exceeds the limit"  # the master's message when a limits.max_abs b
 # structure has lost its stability, so the run counts as a collapse at its intensity, not as an error.
 COLLAPSE_MARK = "OpenSees' transient analysis failed to converge"
 COLLAPSED_STATUS = "collapsed"
-# The code that decides this job's numbers, besides the engine's (orchestration.batch.portable.job_key).
-CODE_SOURCES = ("components/physics", "orchestration/ida_study/ida_jobs.py", "orchestration/case_study/analysis.py")
+# The code that decides this job's numbers, besides the engine's (orchestration.batch.portable.job_key): every
+# project module this one imports, directly or through others (orchestration.batch.code_sources).
+CODE_SOURCES = ("module:orchestration.ida_study.ida_jobs",)
 
 
 def run_status(complete: bool, error: str | None, status: str) -> str:
@@ -78,4 +79,6 @@ def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
         error = error or f"variable {exc} not recorded"
     clean = {k: (float(v) if v is not None and math.isfinite(v) else None) for k, v in metrics.items()}
     return {"status": status, "error": error, "end_time_s": float(result.end_time), "steps": result.steps_done,
-            "run_wall_time_s": time.perf_counter() - started, "metrics": clean}
+            "run_wall_time_s": time.perf_counter() - started, "metrics": clean,
+            "valid": outcome.summary.get("valid"),
+            "invalid_reasons": list(outcome.summary.get("invalid_reasons") or [])}

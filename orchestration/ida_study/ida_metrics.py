@@ -29,7 +29,10 @@ PEAKS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "drift_max_mm", 
          "rms_x_base_mm", "rms_acc_max", "time_beyond_8mm_s", "time_beyond_15mm_s", "residual_drift_1_mm",
          "residual_drift_2_mm", "residual_drift_3_mm", "residual_drift_max_mm")
 COLUMNS = ("record", "component", "record_id", "intensity_measure", "intensity", "im_unscaled", "scale",
-           "strategy", *PEAKS, *INDEX_COLUMNS[2:], "status", "error", "wall_time_s", "end_time_s", "key")
+           "strategy", *PEAKS, *INDEX_COLUMNS[2:], "status", "error", "wall_time_s", "end_time_s", "key", "valid",
+           "invalid_reasons")
+TEXT_COLUMNS = ("record", "component", "record_id", "intensity_measure", "strategy", "status", "error", "key",
+                "invalid_reasons")
 ENDED = ("ok", "diverged", COLLAPSED_STATUS)  # runs that count in the fragility stripes
 
 
@@ -59,6 +62,8 @@ def result_row(comp: ComponentInfo, measure: str, level: float, strategy: str, r
         row.update({k: m.get(k) for k in PEAKS})
         row.update(status=v["status"], error=v.get("error"), wall_time_s=res.wall_time_s,
                    end_time_s=v.get("end_time_s"))
+        if v.get("valid") is not None:  # numerical validity (results stored before runs said so: unknown)
+            row.update(valid=bool(v["valid"]), invalid_reasons="; ".join(v.get("invalid_reasons") or []))
         if off_metrics and v["status"] == "ok" and m:
             row.update(indices(_no_none(m), _no_none(off_metrics)))
     return {c: row.get(c) for c in COLUMNS}
@@ -88,14 +93,16 @@ def drift_ratio(row: dict[str, Any], heights: list[float] | None) -> float | Non
 
 
 def exceeded(row: dict[str, Any], quantity: str, threshold: float, heights: list[float] | None = None) -> bool | None:
-    """Did a run exceed a limit state? None if the run does not count (failed, not run).
+    """Did a run exceed a limit state? None if the run does not count (failed, not run, numerically invalid).
 
     A run stopped by the divergence limit, or that collapsed (the OpenSees unit did not converge),
-    exceeds every limit state; drift ratios use the storey heights ``heights`` [m].
+    exceeds every limit state; drift ratios use the storey heights ``heights`` [m]. A complete run that is
+    numerically invalid (``valid`` false: its energy books or its values cannot be trusted) is not counted;
+    a physical exceedance (beyond the device limit, say) is a result and counts.
     """
     if row["status"] in ("diverged", COLLAPSED_STATUS):
         return True
-    if row["status"] != "ok":
+    if row["status"] != "ok" or row.get("valid") is False:
         return None
     if quantity in RATIO_QUANTITIES:
         value = drift_ratio(row, heights)
@@ -179,7 +186,7 @@ def table_csv(columns: tuple[str, ...] | list[str], rows: list[dict[str, Any]]) 
         for c in columns:
             v = row.get(c)
             cells.append("" if v is None or (isinstance(v, float) and math.isnan(v)) else
-                         repr(float(v)) if isinstance(v, float) else v)
+                         repr(float(v)) if isinstance(v, float) and not isinstance(v, bool) else v)
         writer.writerow(cells)
     return buf.getvalue()
 
@@ -189,11 +196,10 @@ def write_tables(folder: Path, rows: list[dict[str, Any]]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    schema = pa.schema([(c, pa.string() if c in ("record", "component", "record_id", "intensity_measure",
-                                                  "strategy", "status", "error", "key") else pa.float64())
+    schema = pa.schema([(c, pa.string() if c in TEXT_COLUMNS else pa.bool_() if c == "valid" else pa.float64())
                         for c in COLUMNS])
-    table = pa.Table.from_pylist([{c: (float(r[c]) if r[c] is not None and schema.field(c).type == pa.float64()
-                                       else r[c]) for c in COLUMNS} for r in rows], schema=schema)
+    table = pa.Table.from_pylist([{c: (float(r.get(c)) if r.get(c) is not None and schema.field(c).type == pa.float64()
+                                       else r.get(c)) for c in COLUMNS} for r in rows], schema=schema)
     atomic_write(folder / "results.parquet", lambda f: pq.write_table(table, f), binary=True)
     write_text(folder / "results.csv", table_csv(COLUMNS, rows))
 

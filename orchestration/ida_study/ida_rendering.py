@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from orchestration.ida_study.fragility import Fit
+from orchestration.ida_study.fragility import Fit, stroke_capacity, stroke_limit_state
 from orchestration.ida_study.ida_config import IdaSpec
 from orchestration.ida_study.ida_figures import threshold_text
 from orchestration.ida_study.ida_metrics import ENDED, collapse_margins
@@ -60,6 +60,17 @@ def verdict(name: str, spec: IdaSpec, by_strategy: dict[str, Fit], unit: str = "
         strength = "(no finite fit for one of them: see the table)"
     return (f"{head}: **{s1}** needs the highest intensity ({describe(f1, unit)}){ratio}, "
             f"{s2} ({describe(f2, unit)}): {strength}.")
+
+
+def not_counted(strategies: list[str], rows: list[dict[str, Any]]) -> str:
+    """What a limit state's stripes leave out: each strategy's complete runs that are numerically invalid
+    (:func:`~orchestration.ida_study.ida_metrics.exceeded` counts them for no limit state)."""
+    counts = {s: sum(1 for r in rows if r["strategy"] == s and r["status"] == "ok" and r.get("valid") is False)
+              for s in strategies}
+    if not any(counts.values()):
+        return ""
+    return (" Not counted, numerically invalid: " + ", ".join(f"{n} run{'s' if n != 1 else ''} of {s}"
+                                                             for s, n in counts.items() if n) + ".")
 
 
 def describe(fit: Fit, unit: str = "g") -> str:
@@ -114,15 +125,17 @@ def _settings(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]]) -> list[
            if walls else "")
         + f"study wall time {info.wall_time_s or 0:.0f} s on {info.batch['workers']} workers.",
         "* A run stopped by the scenario's divergence limit (`limits.max_abs`), or that collapsed (the OpenSees "
-        "unit did not converge), counts as exceeding every limit state; failed runs are left out of the stripes.",
+        "unit did not converge), counts as exceeding every limit state; failed runs are left out of the stripes, "
+        "and so are complete runs that are numerically invalid (energy books, non-finite values: column `valid`); "
+        "a physical exceedance (beyond the device limit) is a result and counts.",
         "",
     ]
 
 
-def _fits(spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> list[str]:
+def _fits(spec: IdaSpec, fits: dict[str, dict[str, Fit]], rows: list[dict[str, Any]]) -> list[str]:
     """The verdicts and the table of the fits."""
     lines = ["## Verdict per limit state", ""]
-    lines += [f"* {verdict(name, spec, fits[name])}" for name in fits]
+    lines += [f"* {verdict(name, spec, fits[name])}{not_counted(list(fits[name]), rows)}" for name in fits]
     lines += ["", "## Fragility fits", "",
               f"Lognormal, maximum likelihood on the stripes; {100 * spec.confidence:g} % interval of the median "
               "from the expected Fisher information.", ""]
@@ -134,6 +147,18 @@ def _fits(spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> list[str]:
                           " ".join(f"{st.k}/{st.n}" for st in fit.stripes)])
     return [*lines, _table(["limit state", "strategy", "fit", "median [g]", "low", "high", "β",
                             "exceeded / runs per level"], table), ""]
+
+
+def _stroke(spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> list[str]:
+    """Per strategy, the intensity up to which the device stays within its stroke (fragility.stroke_capacity)."""
+    name = stroke_limit_state({k: (v.quantity, v.threshold) for k, v in spec.limit_states.items() if k in fits})
+    if name is None:
+        return []
+    ls = spec.limit_states[name]
+    rows = [[s, stroke_capacity(f).text("g", spec.confidence)] for s, f in fits[name].items()]
+    return ["## Stroke", "", f"The intensity up to which the device stays within its stroke: the median of the "
+            f"fragility '{name}' (isolator beyond {1e3 * ls.threshold:g} mm), with its {100 * spec.confidence:g} % "
+            "interval.", "", _table(["strategy", "within its stroke up to"], rows), ""]
 
 
 def _collapse(spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]]) -> list[str]:
@@ -161,6 +186,10 @@ def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]
     if bad:
         lines += ["## Failed runs", "", _table(["run", "status", "reason"],
                                                [[r["key"], r["status"], (r["error"] or "")[:200]] for r in bad]), ""]
+    invalid = [r for r in rows if r["status"] == "ok" and r.get("valid") is False]
+    if invalid:
+        lines += ["## Numerically invalid runs (not counted)", "",
+                  _table(["run", "reason"], [[r["key"], (r.get("invalid_reasons") or "")[:300]] for r in invalid]), ""]
     lines += ["## Records", "", _table(["id", "source", "window [s]", "IM at scale 1 [g]"],
                                        [[c.id, c.source, f"{c.window_s[0]:.2f}-{c.window_s[1]:.2f}", c.im]
                                         for c in info.components]), ""]
@@ -172,8 +201,8 @@ def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]
 
 def report_markdown(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]]) -> str:
     """The report's Markdown (figures referenced as files)."""
-    return "\n".join([*_settings(info, spec, rows), *_fits(spec, fits), *_collapse(spec, rows, fits),
-                      *_runs_and_provenance(info, rows)])
+    return "\n".join([*_settings(info, spec, rows), *_fits(spec, fits, rows), *_stroke(spec, fits),
+                      *_collapse(spec, rows, fits), *_runs_and_provenance(info, rows)])
 
 
 def _inline(text: str) -> str:

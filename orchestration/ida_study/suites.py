@@ -62,9 +62,39 @@ def _folder_files(folder: Path, patterns: tuple[str, ...]) -> list[Path]:
     return list(found)
 
 
+def _pattern_problems(folder: Path, patterns: tuple[str, ...]) -> list[Problem]:
+    """Patterns that cannot match a record file inside ``folder``: a part beyond the file system's name limit,
+    absolute, or reaching out of the folder (``..``)."""
+    from mre_common.fs_limits import name_problem
+
+    out = []
+    for k, pattern in enumerate(patterns):
+        parts = pattern.split("/") if isinstance(pattern, str) else []
+        if not parts or pattern.startswith("/") or "\x00" in pattern or any(p in ("", "..") for p in parts):
+            out.append(Problem(f"pattern {str(pattern)[:80]!r} must match files inside the folder (not absolute, "
+                               "no '..', no empty part, no NUL)", f"suite.patterns.{k}"))
+            continue
+        problem = next((name_problem(p, folder) for p in parts if name_problem(p, folder)), None)
+        if problem:
+            out.append(Problem(f"pattern {problem}", f"suite.patterns.{k}"))
+    return out
+
+
 def folder_suite(folder: Path, patterns: tuple[str, ...] = DEFAULT_PATTERNS) -> tuple[list[SuiteRecord], list[Problem]]:
     """Every record file of a folder; problems for a missing folder, unreadable files, or no record at all."""
-    if not folder.is_dir():
+    from mre_common.fs_limits import path_problem
+
+    problem = path_problem(folder)
+    if problem:
+        return [], [Problem(f"record folder {problem}", "suite.folder")]
+    bad = _pattern_problems(folder, patterns)
+    if bad:
+        return [], bad
+    try:
+        is_dir = folder.is_dir()
+    except OSError as exc:
+        return [], [Problem(f"record folder {folder}: {exc.strerror or exc}", "suite.folder")]
+    if not is_dir:
         return [], [Problem(f"record folder {folder} does not exist", "suite.folder")]
     records: list[SuiteRecord] = []
     problems: list[Problem] = []

@@ -49,6 +49,8 @@ SCHEMA: dict[str, Any] = {
     "ffoa": {"n_pop": (int, 50), "n_iter": (int, 300), "step": (_NUM, 0.1), "seed": (int, 1)},
     "structured": {"beta_min": (_NUM, 1e-3), "beta_max": (_NUM, 5.0), "n_grid": (int, 48)},
     "bouc_wen_joint": {"enabled": (bool, True), "max_nfev": (int, 40)},
+    "model_selection": {"enabled": (bool, True), "max_nfev": (int, 100)},
+    "plant_uncertainty": {"enabled": (bool, True), "samples": (int, 64), "seed": (int, 1)},
     "acceptance": {"window": (int, 50), "rel_tol": (_NUM, 1e-3), "max_nrmse": (_NUM, 0.3)},
     "figures": (bool, True),
     "output": (str, "results/identification"),
@@ -153,6 +155,10 @@ def validate(doc: Any, path: Path | None = None) -> IdentificationConfig:
         st = cfg["structured"]
         if not 0 < st["beta_min"] < st["beta_max"] or st["n_grid"] < 3:
             problems.append("structured: need 0 < beta_min < beta_max and n_grid >= 3")
+        if cfg["model_selection"]["max_nfev"] < 1:
+            problems.append("model_selection.max_nfev: must be >= 1")
+        if cfg["plant_uncertainty"]["samples"] < 2:
+            problems.append("plant_uncertainty.samples: must be >= 2 (a covariance needs two samples)")
         a = cfg["acceptance"]
         if a["window"] < 1 or a["rel_tol"] < 0 or a["max_nrmse"] <= 0:
             problems.append("acceptance: window must be >= 1, rel_tol >= 0, max_nrmse > 0")

@@ -173,7 +173,7 @@ def fig10_11(out: Path, rr: RunResult) -> None:
 
 def fig12(out: Path, rr: RunResult) -> None:
     """Per-current parameter means and the fitted lines of Eq. (13)-(16)."""
-    fits = {n: f for n, f in rr.generalized.items() if f.model == "hyperbolic"}
+    fits = {n: f for n, f in rr.generalized.items() if f.model == "hyperbolic" and f.means}  # joint fits: no means
     if not fits:
         return
     fig, axes = plt.subplots(2, 2, figsize=(9, 7))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import shutil
@@ -35,8 +36,12 @@ from components.identification.identifiers import (
     identify_hyperbolic_ffoa,
     identify_structured,
 )
+from components.identification.joint_fits import FORMS, bootstrap, fit_joint
+from components.identification.model_selection import Candidate, evaluate
 from components.identification.models import FitData, fit_data
 from components.identification.paper_tables import TEST_MATRIX, Condition
+from components.identification.plant_samples import statistics as plant_statistics
+from components.identification.plant_samples import write_plant_samples
 from components.identification.testdata import (
     SYNTHETIC_NOTE,
     NoiseModel,
@@ -46,7 +51,7 @@ from components.identification.testdata import (
     read_folder,
     write_csv,
 )
-from components.physics.bouc_wen_core import SYNTHETIC_DEFAULT
+from components.physics.bouc_wen_core import SYNTHETIC_DEFAULT, BoucWenCurrentModel
 from components.physics.mre_isolator_core import TABLE2_PAPER_UNITS
 from mre_common.atomic_files import current_umask
 from mre_common.folder_claim import claim_folder
@@ -209,6 +214,73 @@ def generalize(results: dict[str, dict[Condition, IdentResult]]):
     return fits, errors
 
 
+def synthetic_data(cfg: IdentificationConfig, base: Path, seed: int) -> dict[Condition, FitData]:
+    """The configuration's data set with another noise seed (synthetic), or the data themselves (measured)."""
+    raw = copy.deepcopy(cfg.raw)
+    if raw["data"]["source"] == "synthetic":
+        raw["data"]["synthetic"]["seed"] = int(seed)
+    other = IdentificationConfig(raw, cfg.path)
+    return group(load_records(other, base), cfg["fit"]["first_cycle"], cfg["fit"]["cycles"])
+
+
+def select_models(rr: RunResult, cfg: IdentificationConfig, synthetic: bool, base: Path, stage: Path,
+                  progress: bool) -> None:
+    """Joint fits of the forms of :mod:`joint_fits`, the model-selection table and the plant samples.
+
+    Candidates: the paper's Table 2, the joint hyperbolic fit of Eq. (13)-(17), the joint Bouc-Wen fit
+    (``bouc_wen-joint``, when it ran) and the Bouc-Wen form quadratic in the current. The hyperbolic joint fit
+    becomes ``generalized_hyperbolic-joint.yaml``; the quadratic form has no FMU and stays a table row.
+    """
+    sel = cfg["model_selection"]
+    if not sel["enabled"]:
+        return
+    data = rr.data
+    if progress:
+        print("joint least-squares fits of the current-dependent forms, model selection ...", file=sys.stderr)
+    candidates = [Candidate("paper Table 2", "hyperbolic", dict(TABLE2_PAPER_UNITS), fitted=False)]
+    try:
+        hyp = fit_joint("hyperbolic", data, TABLE2_PAPER_UNITS, sel["max_nfev"])
+    except ValueError as exc:
+        rr.generalization_errors["hyperbolic-joint"] = str(exc)
+    else:
+        candidates.append(Candidate("hyperbolic-joint", "hyperbolic", hyp.coefficients))
+        if hyp.success:
+            rr.generalized["hyperbolic-joint"] = GeneralizedFit("hyperbolic", {}, {}, hyp.coefficients)
+        else:
+            rr.generalization_errors["hyperbolic-joint"] = f"least squares did not converge: {hyp.message}"
+    joint = rr.generalized.get("bouc_wen-joint")
+    if joint is not None:
+        start = dict(joint.coefficients)
+        candidates.append(Candidate("bouc_wen-joint", "bouc_wen", start))
+        quad_start = {**start, **{f"{p}_2": 0.0 for p in FORMS["bouc_wen-quadratic"].current_params}}
+        try:
+            quad = fit_joint("bouc_wen-quadratic", data, quad_start, sel["max_nfev"])
+        except ValueError as exc:
+            rr.generalization_errors["bouc_wen-quadratic"] = str(exc)
+        else:
+            candidates.append(Candidate("bouc_wen-quadratic", "bouc_wen-quadratic", quad.coefficients))
+            rr.generalization_errors["bouc_wen-quadratic"] = ("no parameter file: no FMU runs the quadratic "
+                                                              "current rule (model-selection table only)")
+    if synthetic:
+        rr.selection = [evaluate(c, data) for c in candidates]
+    unc = cfg["plant_uncertainty"]
+    if joint is None or not unc["enabled"]:
+        return
+    if progress:
+        print(f"bootstrap of the Bouc-Wen joint fit ({unc['samples']} refits) ...", file=sys.stderr)
+    boot = bootstrap("bouc_wen", lambda seed: synthetic_data(cfg, base, seed), joint.coefficients,
+                     unc["samples"], unc["seed"], sel["max_nfev"])
+    rr.bootstrap = boot
+    to_si = [BoucWenCurrentModel.from_paper_units(**dict(zip(boot.names, row, strict=True)), delta=1.0)
+             for row in boot.samples]
+    note = (f"{SYNTHETIC_NOTE if synthetic else 'identified from measured data'}; bootstrap of the Bouc-Wen "
+            f"joint fit: {unc['samples']} refits, each on a new noise realisation with the conditions drawn with "
+            f"replacement (seed {unc['seed']})")
+    write_plant_samples(stage / "plant_samples_bouc_wen-joint.yaml",
+                        BoucWenCurrentModel.from_paper_units(**joint.coefficients), to_si,
+                        plant_statistics(boot.names, boot.samples), note, synthetic)
+
+
 MARKER = ".mre-cosim-identification"
 """Written into every output folder this tool creates; --overwrite replaces only folders that hold it."""
 
@@ -351,6 +423,7 @@ def run(
                 )
             else:
                 errors["bouc_wen-joint"] = f"least squares did not converge: {joint.message}"
+        select_models(run_result, cfg, synthetic, base, stage, progress)
         run_result.generalized_rms["paper Table 2"] = generalized_rms("hyperbolic", TABLE2_PAPER_UNITS, data)
         for name, fit in fits.items():
             run_result.generalized_rms[name] = generalized_rms(fit.model, fit.coefficients, data)

@@ -137,6 +137,31 @@ def generalized_rows(rr: RunResult) -> list[list[object]]:
     return rows
 
 
+def selection_rows(rr: RunResult) -> list[list[object]]:
+    """The model-selection table (components/identification/model_selection.py), one row per candidate."""
+    rows: list[list[object]] = [["model", "parameters", "median RMS/noise", "max RMS/noise",
+                                 "median |peak error| %", "max |peak error| %", "F(14.9 mm)/F(8 mm) 1 Hz 3 A",
+                                 "AIC sample", "BIC sample", "AIC condition", "BIC condition"]]
+    for sel in rr.selection:
+        s = sel.summary()
+        rows.append([sel.name, sel.parameters, s["rms_noise_median"], s["rms_noise_max"],
+                     100 * s["peak_error_median"], 100 * s["peak_error_max"], s["stroke_ratio"],
+                     sel.aic["sample"], sel.bic["sample"], sel.aic["condition"], sel.bic["condition"]])
+    return rows
+
+
+def bootstrap_rows(rr: RunResult) -> list[list[object]]:
+    """Nominal, bootstrap mean and standard deviation of every coefficient of the sampled plant."""
+    b = rr.bootstrap
+    if b is None:
+        return []
+    nominal = rr.generalized["bouc_wen-joint"].coefficients
+    rows: list[list[object]] = [["coefficient (paper units)", "joint fit", "bootstrap mean", "bootstrap std"]]
+    for j, name in enumerate(b.names):
+        rows.append([name, nominal[name], float(b.samples[:, j].mean()), float(b.samples[:, j].std(ddof=1))])
+    return rows
+
+
 def summary_rows(rr: RunResult) -> list[list[object]]:
     """Per identifier: converged count, RMS error and seconds per condition (median, max)."""
     rows: list[list[object]] = [
@@ -189,6 +214,10 @@ def write_tables(out: Path, rr: RunResult, cfg: IdentificationConfig) -> None:
     bw = bouc_wen_table2_rows(rr)
     if bw:
         atomic_write_text(out / "table2_bouc_wen.csv", head + _csv(bw))
+    if rr.selection:
+        atomic_write_text(out / "model_selection.csv", head + _csv(selection_rows(rr)))
+    if rr.bootstrap is not None:
+        atomic_write_text(out / "plant_bootstrap.csv", head + _csv(bootstrap_rows(rr)))
     payload = {
         "synthetic": rr.synthetic,
         "note": SYNTHETIC_NOTE if rr.synthetic else "measured data",
@@ -264,6 +293,12 @@ def summary_text(rr: RunResult, cfg: IdentificationConfig) -> str:
         ]
     if rr.generalized_rms:
         lines += ["## Generalized models on the data of every condition", "", _md(generalized_rows(rr))]
+    if rr.selection:
+        lines += ["## Model selection (sinusoidal drive against Table 1; AIC/BIC, docs/identification.md)", "",
+                  _md(selection_rows(rr))]
+    if rr.bootstrap is not None:
+        lines += [f"## Sampled plants: bootstrap of the Bouc-Wen joint fit ({len(rr.bootstrap.samples)} refits, "
+                  f"{rr.bootstrap.seconds:.0f} s)", "", _md(bootstrap_rows(rr))]
     bad = rr.not_converged
     if bad:
         lines += ["## Not converged (no parameters written)", ""]

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from components.identification.bouc_wen_joint import JointFit
 from components.identification.generalized import GeneralizedFit
 from components.identification.identifiers import IdentResult
+from components.identification.joint_fits import Bootstrap
+from components.identification.model_selection import Selection
 from components.identification.models import FitData
 from components.identification.paper_tables import Condition
 
@@ -22,6 +24,8 @@ class RunResult:
     synthetic: bool = False
     joint: JointFit | None = None
     generalized_rms: dict[str, dict[Condition, float]] = field(default_factory=dict)
+    selection: list[Selection] = field(default_factory=list)
+    bootstrap: Bootstrap | None = None
 
     @property
     def not_converged(self) -> list[IdentResult]:

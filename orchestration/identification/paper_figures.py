@@ -23,14 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from components.identification.paper_tables import CURRENTS_A, TABLE1
-from components.physics.mre_isolator_core import MM, TABLE2, GeneralizedCoefficients, HyperbolicParams
+from components.physics.mre_isolator_core import MM, TABLE2, GeneralizedCoefficients, HyperbolicParams, device_force
 
 SYNTHETIC = "SYNTHETIC random excitation (not measured)"
 
 
 def loop_force(p: HyperbolicParams, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Force of one device [N] (Eq. 3-4) along a motion x [m], v [m/s]."""
-    return p.c0 * v + p.k0 * x + p.alpha * np.sinh(p.beta * x) + p.F0
+    return device_force(x, v, p, np.sinh)
 
 
 def effective_stiffness(p: HyperbolicParams, amplitude_m: float, frequency_hz: float, samples: int = 4001) -> float:

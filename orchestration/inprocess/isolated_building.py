@@ -70,6 +70,7 @@ def simulate_coupled(
     scheme: Scheme = "gauss-seidel",
     inputs: InputEstimate = "step-mean",
     executor: Literal["scalar", "python"] = "scalar",
+    controller_every: int = 1,
 ) -> Trajectory:
     """Step the system of ``setup`` for ``n_steps`` communication steps of h [s] from t = 0, as a scenario
     run steps its FMUs (``simulation.algorithm`` = ``scheme``, ``simulation.inputs`` = ``inputs``).
@@ -82,13 +83,17 @@ def simulate_coupled(
     The trajectory's absolute accelerations are arel + ag of the recorded columns (as for
     :func:`~components.physics.monolithic.simulate_radau`); the building unit's own ``a_j`` outputs
     sum the same terms in another order and may differ from them in the last bit.
+
+    ``controller_every``: the controller's own step in base steps (``units.controller.step`` =
+    ``controller_every`` · h); ``n_steps`` must be a multiple of it.
     """
     units = build_units(setup)
     n = units[1].model.n_levels
     ports = ([("building", f"x_{j}") for j in range(n)] + [("building", f"v_{j}") for j in range(n)]
              + [("building", f"arel_{j}") for j in range(n)]
              + [("isolator", "F"), ("controller", "i"), ("ground", "ag")])
-    algorithm = CouplingAlgorithm(units, CONNECTIONS, ports, scheme=scheme, inputs=inputs)
+    algorithm = CouplingAlgorithm(units, CONNECTIONS, ports, scheme=scheme, inputs=inputs,
+                                  periods={"controller": controller_every})
     stop = n_steps * h
     if executor == "python":
         recorder = _TrajectoryRecorder(algorithm, ports, n_steps)
@@ -99,7 +104,7 @@ def simulate_coupled(
     else:
         n_grid, t_of = time_grid(0.0, stop, h)
         try:
-            algorithm.initialize(0.0, stop)
+            algorithm.initialize(0.0, stop, h)
             scalar = ScalarExecutor(algorithm, ports)
             scalar.run(0, n_grid, t_of)
         finally:

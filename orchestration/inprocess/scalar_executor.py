@@ -33,7 +33,31 @@ _EXPRESSIONS = {
     "fresh": "v[{s}]",
     "mean": "0.5 * (now[{s}] + v[{s}])",
     "extrapolated": "c0 * now[{s}] + c1 * before[{s}] + c2 * earlier[{s}]",
+    "grid": "g[{s}]",
 }
+
+
+def _jumped(drivers: Sequence[int]) -> str:
+    """Did one of the drivers change in this step (latest value != value at t)?"""
+    return " or ".join(f"v[{d}] != now[{d}]" for d in drivers)
+
+
+def _restarting(slot: int, drivers: Sequence[int], fresh: Sequence[int]) -> str:
+    """The extrapolation of ``slot`` with its history restarted after a held driver changed
+    (:func:`~orchestration.master.algorithm.usable_history`), or its peeked value after a fresh
+    driver jumped in this step, as one expression."""
+    changed_now = " or ".join(f"now[{d}] != before[{d}]" for d in drivers)
+    changed_before = " or ".join(f"before[{d}] != earlier[{d}]" for d in drivers)
+    usable = f"(1 if ({changed_now}) else 2 if ({changed_before}) else 3)"
+    if len(fresh) == len(drivers):  # the peeked value stands in for the history value at the restart
+        expression = (f"(lambda u: (lambda w: w[0] * now[{slot}] + w[1] * (p[{slot}] if u == 1 else before[{slot}]) "
+                      f"+ w[2] * (p[{slot}] if u == 2 else earlier[{slot}]))(weights[u]) if u < 3 else "
+                      f"(lambda w: w[0] * now[{slot}] + w[1] * before[{slot}] + w[2] * earlier[{slot}])"
+                      f"(weights[min(known, 3) - 1]))({usable})")
+    else:
+        w = f"weights[min(known, {usable}) - 1]"
+        expression = f"(lambda w: w[0] * now[{slot}] + w[1] * before[{slot}] + w[2] * earlier[{slot}])({w})"
+    return f"(p[{slot}] if ({_jumped(fresh)}) else {expression})" if len(fresh) else expression
 
 
 class ScalarUnavailable(RuntimeError):
@@ -53,29 +77,15 @@ class ScalarExecutor:
         namespace: dict[str, Any] = {"array": array}
         lines: list[str] = []
         for n, op in enumerate(algorithm.program()):
-            unit = op.unit
-            if op.kind == "step":
-                namespace[f"step_{n}"] = unit.step
-                lines.append(f"step_{n}(t, h)")
-            elif op.kind == "get":
-                if not callable(getattr(unit, "getter", None)):
-                    raise ScalarUnavailable(f"unit {unit.name} has no getter fast path")
-                namespace[f"get_{n}"] = unit.getter(op.handle)
-                targets = "".join(f"v[{s}], " for s in op.slots.tolist())
-                lines.append(f"{targets}= get_{n}()")
-            elif op.kind == "set":
-                if not callable(getattr(unit, "setter", None)):
-                    raise ScalarUnavailable(f"unit {unit.name} has no setter fast path")
-                namespace[f"set_{n}"] = unit.setter(op.handle)
-                terms = [_EXPRESSIONS[RULES[r]].format(s=s)
-                         for s, r in zip(op.slots.tolist(), op.rules.tolist(), strict=True)]
-                lines.append(f"set_{n}([{', '.join(terms)}])")
+            if op.every > 1:  # a unit with its own step: the op runs where k % every == phase
+                lines.append(f"if k % {op.every} == {op.phase}:")
+                lines.append("    " + self._line(op, n, namespace))
             else:
-                raise ScalarUnavailable(f"operation {op.kind} (values that are not Real) of unit {unit.name}")
+                lines.append(self._line(op, n, namespace))
         picks = ", ".join(f"v[{s}]" for s in self._record_slots)
         body = "\n".join(f"        {line}" for line in lines)
         self.source = f'''\
-def run_steps(first, last, t_of, v, now, before, earlier, known, weights, out):
+def run_steps(first, last, t_of, v, now, before, earlier, g, p, known, weights, out):
     extend = out.extend
     for k in range(first, last):
         t = t_of(k)
@@ -94,6 +104,40 @@ def run_steps(first, last, t_of, v, now, before, earlier, known, weights, out):
         self._out = array("d")
         self._record_now()
 
+    @staticmethod
+    def _line(op: Any, n: int, namespace: dict[str, Any]) -> str:
+        """One op of the program as a line of Python (its callables put into ``namespace``)."""
+        unit = op.unit
+        if op.kind == "step":
+            namespace[f"step_{n}"] = unit.step
+            return f"step_{n}(t, h)" if op.every == 1 else f"step_{n}(t, t_of(k + {op.every}) - t)"
+        if op.kind == "latch":
+            return "; ".join(f"g[{s}] = v[{s}]" for s in op.slots.tolist())
+        if op.kind == "peek":
+            if not (callable(getattr(unit, "setter", None)) and callable(getattr(unit, "getter", None))):
+                raise ScalarUnavailable(f"unit {unit.name} has no setter/getter fast path")
+            namespace[f"peek_set_{n}"] = unit.setter(op.handle)
+            namespace[f"peek_get_{n}"] = unit.getter(op.out_handle)
+            drivers = op.slots.tolist()
+            values = ", ".join(f"v[{d}]" for d in drivers)
+            return (f"if {_jumped(drivers)}: peek_set_{n}([{values}]); p[{op.out_slot}] = peek_get_{n}()[0]")
+        if op.kind == "get":
+            if not callable(getattr(unit, "getter", None)):
+                raise ScalarUnavailable(f"unit {unit.name} has no getter fast path")
+            namespace[f"get_{n}"] = unit.getter(op.handle)
+            targets = "".join(f"v[{s}], " for s in op.slots.tolist())
+            return f"{targets}= get_{n}()"
+        if op.kind == "set":
+            if not callable(getattr(unit, "setter", None)):
+                raise ScalarUnavailable(f"unit {unit.name} has no setter fast path")
+            namespace[f"set_{n}"] = unit.setter(op.handle)
+            drivers = op.drivers or [()] * len(op.slots)
+            fresh = op.fresh_drivers or [()] * len(op.slots)
+            terms = [_restarting(s, list(d), list(f)) if len(d) else _EXPRESSIONS[RULES[r]].format(s=s)
+                     for s, r, d, f in zip(op.slots.tolist(), op.rules.tolist(), drivers, fresh, strict=True)]
+            return f"set_{n}([{', '.join(terms)}])"
+        raise ScalarUnavailable(f"operation {op.kind} (values that are not Real) of unit {unit.name}")
+
     def _record_now(self) -> None:
         values = self.algorithm.values
         self._out.extend(values[s] for s in self._record_slots)
@@ -104,13 +148,18 @@ def run_steps(first, last, t_of, v, now, before, earlier, known, weights, out):
         values = alg.values
         history = alg.history
         v = values.tolist()
+        g = alg.grid.tolist()
+        p = alg.peeked.tolist()
         now, before, earlier = (h.tolist() for h in history)
-        now, before, earlier, known = self._run(first, last, t_of, v, now, before, earlier, alg.known,
+        now, before, earlier, known = self._run(first, last, t_of, v, now, before, earlier, g, p, alg.known,
                                                 alg.extrapolation, self._out)
         values[:] = v
+        alg.grid[:] = g
+        alg.peeked[:] = p
         for target, source in zip(history, (now, before, earlier), strict=True):
             target[:] = source
         alg.known = known
+        alg.steps_done = last
 
     def rows(self) -> np.ndarray:
         """The recorded outputs, one row per communication point (the first at initialization)."""

@@ -64,7 +64,11 @@ def libcosim_available() -> str | None:
 
 @dataclass
 class LibcosimRun:
-    """Time series recorded by libcosim: one row per communication point (the initial one too)."""
+    """Time series recorded by libcosim: one row per communication point (the initial one too).
+
+    A unit with its own step (``osp:StepSizeHint``) is sampled by libcosim at its own steps only;
+    its values are held over the base steps in between (the value of its last step).
+    """
 
     times: np.ndarray
     names: list[str]
@@ -128,8 +132,11 @@ def run_libcosim(
         t, steps, values = _samples(observer, slave, ref, 0, n_steps + 1)
         t_last, steps_last, values_last = _samples(observer, slave, ref, n_steps, 1)
         t, steps, values = t + t_last, steps + steps_last, values + values_last
-        if steps != list(range(n_steps + 1)):
+        stride = steps[1] - steps[0] if len(steps) > 1 else 1
+        if stride < 1 or steps != list(range(0, n_steps + 1, stride)):
             raise RuntimeError(f"libcosim returned steps {steps[:3]}...{steps[-3:]} for {port}, expected 0..{n_steps}")
-        data[:, k] = values
-        times = np.asarray(t, dtype=np.int64)
+        # a unit with its own step (decimation factor) is sampled at its own steps: held in between
+        data[:, k] = np.repeat(values, stride)[: n_steps + 1]
+        if stride == 1:
+            times = np.asarray(t, dtype=np.int64)
     return LibcosimRun(times / NANOSECONDS, [f"{u}.{v}" for u, v in ports], data)

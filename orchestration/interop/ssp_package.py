@@ -18,6 +18,9 @@ element for travels in annotations of type ``org.mre-cosim.*`` that other tools 
   units, connections and times, as JSON (communication step, algorithm, stepping order,
   input rule, recorded outputs, report roles, limits, results folder, description);
 * ``org.mre-cosim.connection`` (on a Connection): ``delayed="true"``;
+* ``com.opensimulationplatform`` (on a Component, when the scenario sets ``units.NAME.step``):
+  ``<osp:StepSizeHint value="0.001"/>``, the unit's own step [s], as the Open Simulation Platform
+  writes it (libcosim steps the unit every value/step base steps, its decimation factor);
 * ``org.mre-cosim.unit`` (on a Component, only when the scenario chose them):
   ``<mre:Interface name="model-exchange" relativeTolerance="1e-08"/>``, the FMU interface
   the unit runs and its solver's relative tolerance;
@@ -49,6 +52,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import sys
 import tempfile
 import weakref
 import zipfile
@@ -71,7 +75,9 @@ SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 MRE = "urn:mre-cosim:ssp:1"
-NS = {"ssd": SSD, "ssc": SSC, "ssv": SSV, "mre": MRE}
+OSP = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+NS = {"ssd": SSD, "ssc": SSC, "ssv": SSV, "mre": MRE, "osp": OSP}
+OSP_ANNOTATION = "com.opensimulationplatform"  # libcosim's: <osp:StepSizeHint value="..."/>, a unit's own step [s]
 SSD_FILE = "SystemStructure.ssd"
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 SSV_TYPE = "application/x-ssp-parameter-set"
@@ -139,7 +145,9 @@ def _unique_names(paths: list[Path]) -> dict[Path, str]:
 
 
 def _annotation(parent: etree._Element, prefix: str, kind: str) -> etree._Element:
-    annotations = etree.SubElement(parent, _q(prefix, "Annotations"))
+    annotations = parent.find(_q(prefix, "Annotations"))  # one Annotations element holds them all
+    if annotations is None:
+        annotations = etree.SubElement(parent, _q(prefix, "Annotations"))
     return etree.SubElement(annotations, _q("ssc", "Annotation"), type=kind)
 
 
@@ -235,8 +243,9 @@ def _parameter_set(plan: SystemPlan, unit: str, data_names: dict[str, str]) -> e
 
 def _system_structure(plan: SystemPlan, fmu_names: dict[Path, str], with_ssv: set[str]) -> etree._Element:
     sc = plan.loaded.scenario
-    root = etree.Element(_q("ssd", "SystemStructureDescription"), nsmap={"ssd": SSD, "ssc": SSC, "mre": MRE},
-                         version="1.0", name=sc.name, generationTool="mre-cosim orchestration/interop/ssp_package.py")
+    nsmap = {"ssd": SSD, "ssc": SSC, "mre": MRE, "osp": OSP}
+    root = etree.Element(_q("ssd", "SystemStructureDescription"), nsmap=nsmap, version="1.0", name=sc.name,
+                         generationTool="mre-cosim orchestration/interop/ssp_package.py")
     system = etree.SubElement(root, _q("ssd", "System"), name=sc.name)
     if sc.description:
         system.set("description", _xml_text(sc.description, "description"))
@@ -265,6 +274,9 @@ def _system_structure(plan: SystemPlan, fmu_names: dict[Path, str], with_ssv: se
             if spec.relative_tolerance is not None:
                 attrs["relativeTolerance"] = repr(float(spec.relative_tolerance))
             etree.SubElement(_annotation(comp, "ssd", UNIT_ANNOTATION), _q("mre", "Interface"), attrs)
+        if spec.step is not None:  # the unit's own step, as libcosim reads it (its decimation factor)
+            etree.SubElement(_annotation(comp, "ssd", OSP_ANNOTATION), _q("osp", "StepSizeHint"),
+                             value=repr(float(spec.step)))
     if sc.connections:
         connections = etree.SubElement(system, _q("ssd", "Connections"))
         for c in sc.connections:
@@ -335,6 +347,10 @@ def export_ssp(plan: SystemPlan, dest: Path | str) -> Path:
                 z.write(path, f"resources/{name}")
 
     atomic_write(dest, write, binary=True)
+    scripts = [f"{key} = resources/{data_names[key]}" for key, p in plan.data_files.items() if is_script(key, p)]
+    if scripts:
+        print(f"note: {dest.name} carries {'a script' if len(scripts) == 1 else 'scripts'} that a unit runs as code "
+              f"whenever the package is run: {', '.join(scripts)}", file=sys.stderr, flush=True)
     return dest
 
 
@@ -626,6 +642,13 @@ def _read_system(reader: _Reader, ssd: etree._Element) -> dict[str, Any]:
                 except ValueError as exc:
                     reader.problem(f"component '{unit}': relativeTolerance: {exc}", f"units.{unit}.relative_tolerance",
                                    SSD_FILE, chosen)
+        hint = _annotation_of(comp, "ssd", OSP_ANNOTATION)
+        hint = None if hint is None else hint.find("osp:StepSizeHint", NS)
+        if hint is not None:
+            try:
+                data["units"][unit]["step"] = _number(hint.get("value"))
+            except ValueError as exc:
+                reader.problem(f"component '{unit}': StepSizeHint: {exc}", f"units.{unit}.step", SSD_FILE, hint)
         if path is None:
             reader.problem(f"component '{unit}': FMU '{source}' is not in the package", key, SSD_FILE, comp)
             continue
@@ -720,4 +743,27 @@ def load_ssp(path: Path | str, overrides: tuple[str, ...] = (), workdir: Path | 
         if owned:
             shutil.rmtree(target, ignore_errors=True)
         raise
+    carried = carried_scripts(data)
+    if carried:
+        print(f"note: {path.name} carries {'a script' if len(carried) == 1 else 'scripts'} that a unit runs as Python "
+              f"code with your rights, as any FMU's code runs: {', '.join(carried)}", file=sys.stderr, flush=True)
     return LoadedSsp(scenario, path, lines, data, target, owned)
+
+
+SCRIPT_SUFFIXES = (".py", ".pyw", ".tcl", ".sh")
+"""Data files that are code: a unit that takes one (an OpenSees model script) runs it."""
+
+
+def is_script(key: str, path: str | Path) -> bool:
+    """Whether a data file given at parameter ``key`` is a script a unit runs (by its name or its parameter's)."""
+    return Path(str(path)).suffix.lower() in SCRIPT_SUFFIXES or key.rpartition(".")[2] == "script"
+
+
+def carried_scripts(data: dict[str, Any]) -> list[str]:
+    """``units.<u>.parameters.<p> = resources/<file>`` for each data file of a package's scenario that is a script."""
+    out = []
+    for unit, spec in (data.get("units") or {}).items():
+        for name, value in ((spec or {}).get("parameters") or {}).items():
+            if isinstance(value, DataFile) and is_script(f"{unit}.{name}", value.name):
+                out.append(f"units.{unit}.parameters.{name} = resources/{Path(value.name).name}")
+    return out

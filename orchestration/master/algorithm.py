@@ -31,6 +31,20 @@ extrapolated. They live in a Python list (``typed``), so 64-bit integers pass ex
 output of ``discrete`` variability is held the same way (step-mean and extrapolation are for
 continuous signals). A system without such values runs exactly the Real-only program.
 
+**Held sources and restarts.** A Real output that is piecewise constant on the base grid (``discrete``
+variability, or an output of a unit with its own step) is held, and an extrapolated output
+that depends directly (ModelStructure) on an input fed by such a source uses only the history
+computed with the present held value (:func:`usable_history`): after a current jump, the
+value at t alone, then linear, then the quadratic (docs/master.md, "Estimates after a jump").
+
+**Units with their own step** (``periods``: unit -> m base steps): such a unit steps from t_k
+to t_(k+m) in the base steps k with k % m == 0 and costs nothing in between; it samples its
+inputs at its grid point; its outputs are held: read as they are (``fresh``) by the units it
+steps before in Gauss-Seidel, else as they were at its last grid point (``grid``, the values a
+``latch`` op copies at the end of its steps). Its feedthrough outputs are re-evaluated at the
+end of its steps. Ops carry ``every``/``phase`` for this; with every m = 1 the program is the
+single-rate one (docs/master.md, "Multi-rate stepping").
+
 Every step ends with *feedthrough propagation*: outputs that depend directly on connected
 inputs are re-evaluated level by level with the end-of-step values, so all values at
 t + h are consistent with each other (e.g. a force computed from the displacement at
@@ -39,7 +53,7 @@ t + h, not at t).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -64,19 +78,32 @@ _EXTRAPOLATION = (
 
 
 # How a ``set`` op forms an input from the value arrays (the order is the native kernel's).
-RULES = ("start", "fresh", "mean", "extrapolated")
+RULES = ("start", "fresh", "mean", "extrapolated", "grid")
 
 
 @dataclass
 class ProgramOp:
     """One operation of a communication step: ``set`` inputs, ``step`` a unit, or ``get`` outputs."""
 
-    kind: Literal["set", "step", "get", "tset", "tget"]  # tset/tget: values of other types (a _TypedTransfer)
+    kind: Literal["set", "step", "get", "tset", "tget", "latch", "peek"]  # tset/tget: values of other types
     unit: Unit
     handle: Any = None
     slots: np.ndarray | None = None  # per value: its slot in the value arrays
     rules: np.ndarray | None = None  # set only: per value, an index into RULES
     plan: Any = None  # set of a unit's connected inputs: its _InputPlan (the rules grouped)
+    every: int = 1  # the op runs in the steps k with k % every == phase (a unit stepping every m base steps)
+    phase: int = 0
+    drivers: list[np.ndarray] | None = None  # set only: per value, the held slots whose change restarts its estimate
+    fresh_drivers: list[np.ndarray] | None = None  # set: per value, the drivers whose jump is peeked; peek: its drivers
+    out_handle: Any = None  # peek only: the source output to read after setting the fresh drivers
+    out_slot: int = -1  # peek only: the slot of that output (its peeked value goes to ``peeked[out_slot]``)
+
+    def __post_init__(self) -> None:
+        # a plain ``set`` (propagation): the positions whose value comes from the grid values, or None
+        self.grid_positions: np.ndarray | None = None
+        if self.kind == "set" and self.plan is None and self.rules is not None:
+            found = np.flatnonzero(self.rules == RULES.index("grid"))
+            self.grid_positions = found if len(found) else None
 
 
 @dataclass
@@ -99,6 +126,25 @@ class _InputPlan:
     fresh: tuple[np.ndarray, np.ndarray]  # value at t + h
     mean: tuple[np.ndarray, np.ndarray]  # trapezoid of t and t + h
     extrapolated: tuple[np.ndarray, np.ndarray]  # mid-step extrapolation from t, t - h, t - 2h
+    grid: tuple[np.ndarray, np.ndarray]  # value at the source's last grid point (a unit with its own step)
+    restarting: list[_Restart]  # extrapolated values with held drivers
+
+
+@dataclass
+class _Restart:
+    """An extrapolated input whose source output depends on held inputs (see :func:`usable_history`).
+
+    ``fresh``: the drivers whose new value is known before the consumer steps (they stepped
+    before it, and the source unit reads them as they are): when one of them changed in this
+    step, the source output is evaluated with it at t (``peek``, the value at t+) and the
+    consumer gets that value.
+    """
+
+    position: int  # in the consumer's input buffer
+    slot: int  # the source output's slot
+    drivers: np.ndarray  # slots of the held sources it depends on
+    fresh: np.ndarray  # those of them known before the consumer steps
+    peek: Any = None  # ProgramOp "peek" that evaluates the source output with the fresh drivers, or None
 
 
 @dataclass
@@ -122,6 +168,21 @@ class _PropagationStep:
     typed_set: list[_TypedTransfer]
     real_get: _Transfer | None
     typed_get: list[_TypedTransfer]
+    set_rules: np.ndarray | None = None  # per value of real_set: "fresh", or "grid" for a source with its own step
+
+
+def usable_history(now: np.ndarray, before: np.ndarray, earlier: np.ndarray, drivers: np.ndarray) -> int:
+    """How many of the values at t, t - h, t - 2h of an output were computed with the present held inputs.
+
+    ``drivers``: slots of the held (piecewise-constant) sources the output depends on directly.
+    1 when one of them differs between t and t - h (the history restarts at t), 2 when one
+    differs between t - h and t - 2h, else 3. The native kernel makes the same comparisons.
+    """
+    if bool(np.any(now[drivers] != before[drivers])):
+        return 1
+    if bool(np.any(before[drivers] != earlier[drivers])):
+        return 2
+    return 3
 
 
 def _pair(items: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -139,11 +200,16 @@ class CouplingAlgorithm:
         scheme: Scheme = "gauss-seidel",
         order: Sequence[str] | None = None,
         inputs: InputEstimate = "step-mean",
+        periods: Mapping[str, int] | None = None,
     ) -> None:
         self.units = {u.name: u for u in units}
         self.links = list(links)
         self.scheme = scheme
         self.inputs = inputs
+        # each unit's own step as a whole number of base steps (1: the base step)
+        self.periods = {name: int((periods or {}).get(name, 1)) for name in self.units}
+        if any(m < 1 for m in self.periods.values()):
+            raise ValueError(f"unit periods must be whole numbers >= 1, got {dict(periods or {})}")
         desc = {u.name: u.description for u in units}
         self.levels = propagation_order(desc, self.links)  # raises AlgebraicLoopError
         if order is None:
@@ -172,7 +238,11 @@ class CouplingAlgorithm:
         n = len(self.slot)
         self.values = np.zeros(n)  # latest values (end of step once a step is done)
         self._history = [np.zeros(n), np.zeros(n), np.zeros(n)]  # values at t, t - h, t - 2h
+        self._grid = np.zeros(n)  # per slot: its value at its unit's last grid point (read by the "grid" rule)
+        self._peeked = np.zeros(n)  # per slot: its value at t with the new held inputs (written by "peek" ops)
         self._known = 0  # how many history entries are real
+        self._k = 0  # steps done
+        self._t_of: Callable[[int], float] | None = None  # the base grid (for the steps of units with periods)
         self._desc = desc
         self._source = {link.target: link.source for link in self.links}
         self._outputs: dict[str, _Transfer] = {}
@@ -185,6 +255,7 @@ class CouplingAlgorithm:
             if typed_outs:
                 self._typed_outputs[name] = self._typed_transfers(unit, typed_outs, [False] * len(typed_outs))
         self._typed_inputs: dict[str, list[_TypedTransfer]] = {}
+        self._link_rule: dict[Port, str] = {}  # target port -> its rule (RULES) in the step
         self._input_plans = self._plan_inputs()
         self._propagation = self._plan_propagation()
         self._program = self._build_program()
@@ -209,10 +280,67 @@ class CouplingAlgorithm:
             tr.mirror.append(self.slot.get(port, -1) if sources is None else -1)
         return list(groups.values())
 
+    def _is_held(self, port: Port) -> bool:
+        """Is this Real output piecewise constant on the base grid: ``discrete``, or of a unit with its own step?"""
+        return self._desc[port[0]].variables[port[1]].variability == "discrete" or self.periods[port[0]] > 1
+
+    def _rule(self, link: Link, fresh: bool) -> str:
+        """How the target of a Real link forms its input (an entry of RULES); ``fresh``: the source steps first."""
+        m_source, m_target = self.periods[link.source[0]], self.periods[link.target[0]]
+        if m_source == 1 and m_target == 1:
+            if link.delayed:
+                return "start"
+            if self.inputs == "hold" or self._is_held(link.source):
+                return "fresh" if fresh else "start"
+            return "mean" if fresh else "extrapolated"
+        if m_source == 1:  # a unit with its own step samples its faster sources at its grid point
+            return "start"
+        # the output of a unit with its own step is held: the latest one, or the one at its last grid point
+        if fresh and not link.delayed and m_target in (1, m_source):
+            return "fresh"
+        return "grid"
+
+    def _drivers(self, port: Port) -> np.ndarray:
+        """Slots of the held sources that the output ``port`` depends on directly (ModelStructure).
+
+        When one of them changed, the history of ``port`` mixes values computed with different
+        held inputs: its extrapolation restarts (see :meth:`_set_inputs`).
+        """
+        found = []
+        for target in feedthrough_inputs(self._desc, self.links, port):
+            source = self._source[target]
+            # an input read at its source's grid points ("grid") changes with the grid values, which the history
+            # does not keep: such a driver is left out (the output's estimate then never restarts for it)
+            if source in self._real_ports and self._is_held(source) and self._link_rule.get(target) != "grid":
+                found.append(self.slot[source])
+        return np.asarray(sorted(set(found)), dtype=np.intp)
+
+    def _restart(self, position: int, port: Port, drivers: np.ndarray, stepped_before: set[str]) -> _Restart:
+        """The restart plan of an extrapolated input from ``port``, and its peek when a driver is known first."""
+        source_unit = self.units[port[0]]
+        fresh_inputs = [target for target in feedthrough_inputs(self._desc, self.links, port)
+                        if self._link_rule.get(target) == "fresh" and self._source[target][0] in stepped_before
+                        and self.slot.get(self._source[target]) in set(drivers.tolist())]
+        fresh = np.asarray([self.slot[self._source[t]] for t in fresh_inputs], dtype=np.intp)
+        peek = None
+        if fresh_inputs:
+            refs = [self._desc[port[0]].variables[t[1]].vr for t in fresh_inputs]
+            out = source_unit.prepare([self._desc[port[0]].variables[port[1]].vr])
+            peek = ProgramOp("peek", source_unit, source_unit.prepare(refs), fresh, fresh_drivers=[fresh],
+                             out_handle=out, out_slot=self.slot[port])
+        return _Restart(position, self.slot[port], drivers, fresh, peek)
+
     def _plan_inputs(self) -> dict[str, _InputPlan]:
-        stepped_before: set[str] = set()
-        plans = {}
         sequence = self.order if self.scheme == "gauss-seidel" else list(self.units.values())
+        stepped_before: set[str] = set()
+        for unit in sequence:  # every Real link's rule first: the drivers of an estimate depend on other links' rules
+            for link in self.links:
+                if link.target[0] == unit.name and link.source in self._real_ports:
+                    fresh = self.scheme == "gauss-seidel" and link.source[0] in stepped_before
+                    self._link_rule[link.target] = self._rule(link, fresh)
+            stepped_before.add(unit.name)
+        stepped_before = set()
+        plans = {}
         for unit in sequence:
             typed_links = [link for link in self.links if link.target[0] == unit.name
                            and link.source in self.typed_slot]
@@ -222,23 +350,21 @@ class CouplingAlgorithm:
                 self._typed_inputs[unit.name] = self._typed_transfers(
                     unit, [link.target for link in typed_links], fresh_values, [link.source for link in typed_links])
             links = [link for link in self.links if link.target[0] == unit.name and link.source in self._real_ports]
-            groups: dict[str, list[tuple[int, int]]] = {"start": [], "fresh": [], "mean": [], "extrapolated": []}
+            groups: dict[str, list[tuple[int, int]]] = {rule: [] for rule in RULES}
+            restarting: list[_Restart] = []
             for k, link in enumerate(links):
                 slot = self.slot[link.source]
-                fresh = self.scheme == "gauss-seidel" and link.source[0] in stepped_before
-                held = self._desc[link.source[0]].variables[link.source[1]].variability == "discrete"
-                if link.delayed:
-                    rule = "start"
-                elif self.inputs == "hold" or held:
-                    rule = "fresh" if fresh else "start"
+                rule = self._link_rule[link.target]
+                drivers = self._drivers(link.source) if rule == "extrapolated" else np.zeros(0, dtype=np.intp)
+                if len(drivers):
+                    restarting.append(self._restart(k, link.source, drivers, stepped_before))
                 else:
-                    rule = "mean" if fresh else "extrapolated"
-                groups[rule].append((k, slot))
+                    groups[rule].append((k, slot))
             if links:
                 refs = [self._desc[unit.name].variables[link.target[1]].vr for link in links]
                 plans[unit.name] = _InputPlan(
                     unit, unit.prepare(refs), np.zeros(len(links)),
-                    **{rule: _pair(items) for rule, items in groups.items()},
+                    **{rule: _pair(items) for rule, items in groups.items()}, restarting=restarting,
                 )
             stepped_before.add(unit.name)
         return plans
@@ -262,6 +388,7 @@ class CouplingAlgorithm:
                 typed_ins = [i for i in ins if self._source[i] in self.typed_slot]
                 real_outs = [o for o in outs if o in self._real_ports]
                 typed_outs = [o for o in outs if o in self.typed_slot]
+                rules = [RULES.index("grid" if self._link_rule.get(i) == "grid" else "fresh") for i in real_ins]
                 plan.append(_PropagationStep(
                     self._transfer(unit, real_ins, [self.slot[self._source[i]] for i in real_ins])
                     if real_ins else None,
@@ -269,6 +396,7 @@ class CouplingAlgorithm:
                                           [self._source[i] for i in typed_ins]),
                     self._transfer(unit, real_outs, [self.slot[o] for o in real_outs]) if real_outs else None,
                     self._typed_transfers(unit, typed_outs, [False] * len(typed_outs)),
+                    np.asarray(rules, dtype=np.intp) if real_ins else None,
                 ))
         return plan
 
@@ -289,7 +417,33 @@ class CouplingAlgorithm:
         if len(pos):
             c0, c1, c2 = _EXTRAPOLATION[min(self._known, 3) - 1]
             buf[pos] = c0 * now[slots] + c1 * before[slots] + c2 * earlier[slots]
+        pos, slots = plan.grid
+        if len(pos):
+            buf[pos] = self._grid[slots]
+        peeked = self._peeked
+        for r in plan.restarting:
+            s = r.slot
+            if len(r.fresh) and bool(np.any(self.values[r.fresh] != now[r.fresh])):
+                buf[r.position] = peeked[s]  # the source's value at t with the new held input
+                continue
+            usable = usable_history(now, before, earlier, r.drivers)
+            if usable < 3 and len(r.fresh) == len(r.drivers):
+                # the value peeked at the jump (at t+ of the point the history restarted at) stands in for the
+                # history value there, computed with the old held input: one more value, the same polynomial
+                c0, c1, c2 = _EXTRAPOLATION[usable]
+                buf[r.position] = (c0 * now[s] + c1 * (peeked[s] if usable == 1 else before[s])
+                                   + c2 * (peeked[s] if usable == 2 else earlier[s]))
+                continue
+            c0, c1, c2 = _EXTRAPOLATION[min(self._known, usable) - 1]
+            buf[r.position] = c0 * now[s] + c1 * before[s] + c2 * earlier[s]
         plan.unit.set_real(plan.handle, buf)
+
+    def _peek(self, op: ProgramOp) -> None:
+        """After a fresh held input jumped: the source output at t with the new value (a set and a get at t)."""
+        values = self.values
+        if bool(np.any(values[op.slots] != self._history[0][op.slots])):
+            op.unit.set_real(op.handle, values[op.slots])
+            self._peeked[op.out_slot] = op.unit.get_real(op.out_handle)[0]
 
     def _set_all_current(self, name: str) -> None:
         """Set a unit's connected inputs to the present values (initialization)."""
@@ -298,8 +452,9 @@ class CouplingAlgorithm:
         plan = self._input_plans.get(name)
         if plan is None:
             return
-        positions = np.concatenate([plan.start[0], plan.fresh[0], plan.mean[0], plan.extrapolated[0]])
-        slots = np.concatenate([plan.start[1], plan.fresh[1], plan.mean[1], plan.extrapolated[1]])
+        restarting = np.asarray([(r.position, r.slot) for r in plan.restarting], dtype=np.intp).reshape(-1, 2)
+        positions = np.concatenate([getattr(plan, rule)[0] for rule in RULES] + [restarting[:, 0]])
+        slots = np.concatenate([getattr(plan, rule)[1] for rule in RULES] + [restarting[:, 1]])
         plan.buffer[positions] = self.values[slots]
         plan.unit.set_real(plan.handle, plan.buffer)
 
@@ -345,9 +500,27 @@ class CouplingAlgorithm:
             for tr in p.typed_get:
                 self._get_typed(tr)
 
-    def initialize(self, start_time: float, stop_time: float) -> None:
-        """Set up every unit, make the values at the start time consistent, leave initialization."""
+    def initialize(self, start_time: float, stop_time: float, step: float | None = None) -> None:
+        """Set up every unit, make the values at the start time consistent, leave initialization.
+
+        ``step``: the base step [s], needed when a unit has its own step (its steps end on
+        t_k = start + k * step, the last exactly on the stop time).
+        """
         self._time = start_time
+        self._k = 0
+        coarse = {name: m for name, m in self.periods.items() if m > 1}
+        if coarse:
+            if step is None:
+                raise ValueError("units with their own step need the base step: initialize(start, stop, step)")
+            n = round((stop_time - start_time) / step)
+            uneven = [f"{name} ({m} base steps)" for name, m in coarse.items() if n % m]
+            if uneven:
+                raise ValueError(f"{n} base steps are not a whole number of the own steps of {', '.join(uneven)}")
+
+            def t_of(k: int) -> float:
+                return stop_time if k == n else start_time + k * step
+
+            self._t_of = t_of
         for unit in self.units.values():
             unit.setup(start_time, stop_time)
         self._consistent_outputs()
@@ -358,6 +531,7 @@ class CouplingAlgorithm:
         self._consistent_outputs()
         for h in self._history:
             h[:] = self.values
+        self._grid[:] = self.values
         self._typed_now[:] = self.typed
         self._known = 1
 
@@ -367,18 +541,32 @@ class CouplingAlgorithm:
         self.propagate()
 
     def step(self, t: float, h: float) -> None:
-        """One communication step from t to t + h [s]: the ops of :meth:`program`, then the history shift."""
+        """One communication step from t to t + h [s]: the ops of :meth:`program`, then the history shift.
+
+        A unit with its own step of m base steps steps from t to t(k + m) in the base steps k
+        with k % m == 0 (ops with ``every`` = m run where k % m == ``phase``).
+        """
         values = self.values
+        k = self._k
         self._time = t + h
         for op in self._program:
+            if op.every > 1 and k % op.every != op.phase:
+                continue
             if op.kind == "step":
-                op.unit.step(t, h)
+                op.unit.step(t, h if op.every == 1 else self._t_of(k + op.every) - t)
             elif op.kind == "get":
                 values[op.slots] = op.unit.get_real(op.handle)
             elif op.plan is not None:
                 self._set_inputs(op.plan)
             elif op.kind == "set":
-                op.unit.set_real(op.handle, values[op.slots])
+                buf = values[op.slots]
+                if op.grid_positions is not None:
+                    buf[op.grid_positions] = self._grid[op.slots[op.grid_positions]]
+                op.unit.set_real(op.handle, buf)
+            elif op.kind == "latch":
+                self._grid[op.slots] = values[op.slots]
+            elif op.kind == "peek":
+                self._peek(op)
             elif op.kind == "tget":
                 self._get_typed(op.handle)
             else:
@@ -391,6 +579,7 @@ class CouplingAlgorithm:
         if self.typed:
             self._typed_now[:] = self.typed
         self._known += 1
+        self._k += 1
 
     def program(self) -> list[ProgramOp]:
         """One communication step as a flat list of operations, the one :meth:`step` carries out.
@@ -405,45 +594,73 @@ class CouplingAlgorithm:
         return self._program
 
     def _build_program(self) -> list[ProgramOp]:
+        periods = self.periods
+
+        def timing(name: str, at_end: bool = False) -> dict[str, int]:
+            """A unit with its own step of m base steps: its step's ops run at k % m == 0, its propagation at the
+            end of its steps (k % m == m - 1)."""
+            m = periods[name]
+            return {"every": m, "phase": m - 1 if at_end else 0}
+
         def set_op(plan: _InputPlan) -> ProgramOp:
             rules = np.zeros(len(plan.buffer), dtype=np.intp)
             slots = np.zeros(len(plan.buffer), dtype=np.intp)
+            drivers = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
+            fresh = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
             for rule in RULES:
                 pos, group_slots = getattr(plan, rule)
                 rules[pos] = RULES.index(rule)
                 slots[pos] = group_slots
-            return ProgramOp("set", plan.unit, plan.handle, slots, rules, plan)
+            for r in plan.restarting:
+                rules[r.position], slots[r.position] = RULES.index("extrapolated"), r.slot
+                drivers[r.position], fresh[r.position] = r.drivers, r.fresh
+            return ProgramOp("set", plan.unit, plan.handle, slots, rules, plan, **timing(plan.unit.name),
+                             drivers=drivers, fresh_drivers=fresh)
 
         def get_op(name: str) -> list[ProgramOp]:
             tr = self._outputs.get(name)
-            real = [] if tr is None else [ProgramOp("get", tr.unit, tr.handle, tr.slots)]
-            return real + [ProgramOp("tget", t.unit, t) for t in self._typed_outputs.get(name, ())]
+            real = [] if tr is None else [ProgramOp("get", tr.unit, tr.handle, tr.slots, **timing(name))]
+            return real + [ProgramOp("tget", t.unit, t, **timing(name)) for t in self._typed_outputs.get(name, ())]
 
         def set_ops(name: str) -> list[ProgramOp]:
-            real = [set_op(plans[name])] if name in plans else []
-            return real + [ProgramOp("tset", t.unit, t) for t in self._typed_inputs.get(name, ())]
+            peeks = [r.peek for r in plans[name].restarting if r.peek is not None] if name in plans else []
+            real = [*peeks, set_op(plans[name])] if name in plans else []
+            return real + [ProgramOp("tset", t.unit, t, **timing(name)) for t in self._typed_inputs.get(name, ())]
 
         plans = self._input_plans
         ops: list[ProgramOp] = []
         if self.scheme == "jacobi":
             for unit in self.order:
                 ops += set_ops(unit.name)
-            ops += [ProgramOp("step", u) for u in self.order]
+            ops += [ProgramOp("step", u, **timing(u.name)) for u in self.order]
             for unit in self.order:
                 ops += get_op(unit.name)
         else:
             for unit in self.order:
                 ops += set_ops(unit.name)
-                ops.append(ProgramOp("step", unit))
+                ops.append(ProgramOp("step", unit, **timing(unit.name)))
                 ops += get_op(unit.name)
+        # Units with their own step: their outputs as they are at the end of their steps, for the "grid" rule.
+        # Outputs the propagation re-reads are latched after that read, the others before the propagation.
+        propagated = {o for p in self._propagation if p.real_get is not None for o in p.real_get.slots.tolist()}
+        for name, m in periods.items():
+            tr = self._outputs.get(name)
+            if m > 1 and tr is not None:
+                kept = [k for k in tr.slots.tolist() if k not in propagated]
+                if kept:
+                    ops.append(ProgramOp("latch", tr.unit, None, np.asarray(kept, dtype=np.intp),
+                                         **timing(name, at_end=True)))
         for p in self._propagation:
+            name = (p.real_set or p.real_get or (p.typed_set or p.typed_get)[0]).unit.name
+            when = timing(name, at_end=True)
             if p.real_set is not None:
-                fresh = np.full(len(p.real_set.slots), RULES.index("fresh"), dtype=np.intp)
-                ops.append(ProgramOp("set", p.real_set.unit, p.real_set.handle, p.real_set.slots, fresh))
-            ops += [ProgramOp("tset", t.unit, t) for t in p.typed_set]
+                ops.append(ProgramOp("set", p.real_set.unit, p.real_set.handle, p.real_set.slots, p.set_rules, **when))
+            ops += [ProgramOp("tset", t.unit, t, **when) for t in p.typed_set]
             if p.real_get is not None:
-                ops.append(ProgramOp("get", p.real_get.unit, p.real_get.handle, p.real_get.slots))
-            ops += [ProgramOp("tget", t.unit, t) for t in p.typed_get]
+                ops.append(ProgramOp("get", p.real_get.unit, p.real_get.handle, p.real_get.slots, **when))
+                if periods[name] > 1:
+                    ops.append(ProgramOp("latch", p.real_get.unit, None, p.real_get.slots, **when))
+            ops += [ProgramOp("tget", t.unit, t, **when) for t in p.typed_get]
         return self._without_dead_reads(ops)
 
     def _without_dead_reads(self, ops: list[ProgramOp]) -> list[ProgramOp]:
@@ -452,25 +669,33 @@ class CouplingAlgorithm:
         Typically a feedthrough output read right after its unit steps and read again, with the
         end-of-step inputs, by the propagation (a force fed back to the unit that drives it): the first read is never
         used. A ``get`` left with nothing to read is removed, one with fewer outputs gets its
-        own handle. The values at the end of the step are the same, with fewer FMI calls.
+        own handle. The values at the end of the step are the same, with fewer FMI calls. A later
+        ``get`` overwrites only when it runs in every step the earlier one runs in (same timing, or every step).
         """
         reads_values = (RULES.index("fresh"), RULES.index("mean"))  # start/extrapolated read the history
         port_of = {k: p for p, k in self.slot.items()}
-        overwritten: set[int] = set()  # slots written later in the step before any op reads them
+        overwritten: dict[int, set[tuple[int, int]]] = {}  # slot -> timings of the later gets that overwrite it
         kept: list[ProgramOp] = []
         for op in reversed(ops):
             if op.kind == "get":
-                live = [k for k, s in enumerate(op.slots.tolist()) if s not in overwritten]
-                overwritten.update(op.slots.tolist())
+                when = (op.every, op.phase)
+                live = [k for k, s in enumerate(op.slots.tolist())
+                        if not ({when, (1, 0)} & overwritten.get(s, set()))]
+                for s in op.slots.tolist():
+                    overwritten.setdefault(s, set()).add(when)
                 if not live:
                     continue
                 if len(live) < len(op.slots):
                     slots = op.slots[live].tolist()
                     narrowed = self._transfer(op.unit, [port_of[k] for k in slots], slots)
-                    op = ProgramOp("get", op.unit, narrowed.handle, narrowed.slots)
+                    op = ProgramOp("get", op.unit, narrowed.handle, narrowed.slots, every=op.every, phase=op.phase)
             elif op.kind == "set":  # tset/tget use the typed slots: no float slot is read or dropped
-                overwritten.difference_update(s for s, rule in zip(op.slots.tolist(), op.rules.tolist(), strict=True)
-                                              if rule in reads_values)
+                for s, rule in zip(op.slots.tolist(), op.rules.tolist(), strict=True):
+                    if rule in reads_values:
+                        overwritten.pop(s, None)
+            elif op.kind in ("latch", "peek"):  # they read the latest values of their slots
+                for s in op.slots.tolist():
+                    overwritten.pop(s, None)
             kept.append(op)
         return kept[::-1]
 
@@ -492,6 +717,25 @@ class CouplingAlgorithm:
     @known.setter
     def known(self, value: int) -> None:
         self._known = value
+
+    @property
+    def steps_done(self) -> int:
+        """Steps done since initialization (the native executor sets it after its runs)."""
+        return self._k
+
+    @steps_done.setter
+    def steps_done(self, value: int) -> None:
+        self._k = value
+
+    @property
+    def peeked(self) -> np.ndarray:
+        """Per slot: the value a ``peek`` op read (the source output at t with its new held inputs)."""
+        return self._peeked
+
+    @property
+    def grid(self) -> np.ndarray:
+        """Per slot: its value at its unit's last grid point (the array latch ops write, the "grid" rule reads)."""
+        return self._grid
 
     def value(self, port: Port) -> float:
         """Present value of a slotted output."""

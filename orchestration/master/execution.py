@@ -104,7 +104,7 @@ def execute(
     status, error = "complete", None
     used, note = "python", ""
     try:
-        algorithm.initialize(start, stop)
+        algorithm.initialize(start, stop, step)
         if after_initialization is not None:
             after_initialization()
         for obs in observers:

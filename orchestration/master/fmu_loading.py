@@ -19,12 +19,21 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from mre_common.private_cache import (
+    fallback_folder,
+    manifest_problem,
+    note,
+    remove_entry,
+    trusted_folder,
+    write_manifest,
+)
 from orchestration.master.errors import SimulationError
 from orchestration.master.fmu_description import model_identifier, open_fmu
 from orchestration.master.safe_archive import safe_extract
 
 _SHARED_ROOT: Path | None = None  # see share_extractions
 _IN_USE: set[str] = set()  # shared extraction folders loaded in this process
+_FALLEN_BACK: set[Path] = set()  # private folders this process extracts into because the shared one failed
 
 
 def share_extractions(root: Path | str | None) -> None:
@@ -43,26 +52,54 @@ def _archive_sha256(path: str, size: int, mtime_ns: int) -> str:
     return h.hexdigest()
 
 
-def _shared_folder(path: Path) -> str:
-    """The FMU's extraction under the shared root, extracted now if it is not there yet (atomically: renamed
-    into place whole, so a concurrent process never sees half of it)."""
-    assert _SHARED_ROOT is not None
-    st = os.stat(path)
-    target = _SHARED_ROOT / _archive_sha256(str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
-    if not target.is_dir():
-        _SHARED_ROOT.mkdir(parents=True, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=".extract-", dir=_SHARED_ROOT)
+def _extract_entry(root: Path, target: Path, path: Path, source: str) -> None:
+    """Extract the archive into ``target`` with its manifest, renamed into place whole (a concurrent process
+    never sees half of it; of two, the first rename wins and the other's copy is dropped)."""
+    staging = tempfile.mkdtemp(prefix=".extract-", dir=root)
+    try:
+        with open_fmu(Path(path)) as z:
+            safe_extract(z, staging, path)
+        write_manifest(staging, source)
         try:
-            with open_fmu(Path(path)) as z:
-                safe_extract(z, staging, path)
+            os.rename(staging, target)
+        except OSError:  # another process put it there first: verified by the caller
+            if not os.path.lexists(target):
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _shared_folder(path: Path) -> str:
+    """The FMU's extraction under the shared root, extracted now if it is not there yet.
+
+    The root must be this user's private folder (mode 0700, owned, not a symlink; else this process extracts
+    into a folder of its own, with a note), and an entry is used only if its files match the manifest written
+    when it was extracted, which names the archive's SHA-256; a damaged entry is extracted again, with a note
+    naming the cache (:mod:`mre_common.private_cache`)."""
+    global _SHARED_ROOT
+    assert _SHARED_ROOT is not None
+    root = trusted_folder(_SHARED_ROOT)
+    if root != _SHARED_ROOT:
+        _SHARED_ROOT = root  # noted once; later loads of this process go there directly
+    st = os.stat(path)
+    sha = _archive_sha256(str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    target = root / sha
+    for _attempt in range(2):
+        if not os.path.lexists(target):
             try:
-                os.rename(staging, target)
-            except OSError:  # another process put it there first
-                if not target.is_dir():
+                _extract_entry(root, target, path, sha)
+            except OSError as exc:  # a read-only or full cache: extract where this process may (noted)
+                if root in _FALLEN_BACK:
                     raise
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
-    return str(target)
+                _SHARED_ROOT = fallback_folder(root, f"cannot be written ({exc.strerror or exc})")
+                _FALLEN_BACK.add(_SHARED_ROOT)
+                return _shared_folder(path)
+        problem = manifest_problem(target, sha)
+        if problem is None:
+            return str(target)
+        note(root, f"extraction {sha[:16]}... {problem}: extracting it again")
+        remove_entry(target)
+    raise SimulationError(f"the FMU extraction cache {root} keeps giving a damaged copy of {path}: remove it")
 
 
 def release(directory: str | None, abandoned: bool = False) -> None:

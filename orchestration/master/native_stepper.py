@@ -37,7 +37,7 @@ from orchestration.master.monitor import Monitor
 
 SOURCE = Path(__file__).resolve().parent / "native" / "step_kernel.c"
 CFLAGS = ("-shared", "-fPIC", "-O2", "-ffp-contract=off", "-std=c99", "-Wall", "-Wextra")
-_KINDS = {"set": 0, "step": 1, "get": 2}
+_KINDS = {"set": 0, "step": 1, "get": 2, "latch": 3, "peek": 4}
 _FUNCTIONS = {"set": "fmi2SetReal", "step": "fmi2DoStep", "get": "fmi2GetReal"}
 _DONE, _FMI_FAILED, _MONITOR = 0, 1, 2
 
@@ -50,6 +50,9 @@ class _Op(Structure):
     _fields_ = [
         ("kind", c_int64), ("unit", c_int64), ("n", c_int64),
         ("vrs", c_void_p), ("buf", c_void_p), ("slots", c_void_p), ("rules", c_void_p),
+        ("every", c_int64), ("phase", c_int64), ("dfirst", c_void_p), ("dslots", c_void_p),
+        ("ffirst", c_void_p), ("fslots", c_void_p), ("n2", c_int64), ("out", c_int64), ("vrs2", c_void_p),
+        ("buf2", c_void_p),
     ]
 
 
@@ -59,11 +62,12 @@ class _Kernel(Structure):
         ("do_step", c_void_p), ("unit_time", c_void_p),
         ("n_ops", c_int64), ("ops", c_void_p),
         ("n_values", c_int64), ("values", c_void_p), ("now", c_void_p), ("before", c_void_p),
-        ("earlier", c_void_p), ("known", c_int64), ("extrapolation", c_void_p),
+        ("earlier", c_void_p), ("grid", c_void_p), ("peeked", c_void_p), ("known", c_int64),
+        ("extrapolation", c_void_p),
         ("start", c_double), ("stop", c_double), ("step", c_double), ("n_steps", c_int64),
         ("n_record", c_int64), ("record_slots", c_void_p), ("record_time", c_void_p), ("record_data", c_void_p),
         ("check_finite", c_int64), ("n_limits", c_int64), ("limit_slots", c_void_p), ("limits", c_void_p),
-        ("failed_op", c_int64), ("failed_status", c_int64),
+        ("failed_op", c_int64), ("failed_status", c_int64), ("failed_get", c_int64),
     ]
 
 
@@ -147,7 +151,8 @@ class NativeStepper:
         monitors = [o for o in observers if isinstance(o, Monitor)]
         if len(recorders) + len(monitors) != len(observers) or len(recorders) > 1 or len(monitors) > 1:
             raise NativeUnavailable("observers other than one Recorder and one Monitor")
-        arrays = [algorithm.values, *algorithm.history, *(a for r in recorders for a in r.rows_to_fill()[1:])]
+        arrays = [algorithm.values, *algorithm.history, algorithm.grid, algorithm.peeked,
+                  *(a for r in recorders for a in r.rows_to_fill()[1:])]
         if not all(a.dtype == np.float64 and a.flags.c_contiguous for a in arrays):
             raise NativeUnavailable("value or recording arrays that are not contiguous float64")
         self._library = kernel_library()
@@ -167,11 +172,23 @@ class NativeStepper:
         ops = (_Op * len(self._program))()
         for op, p in zip(ops, self._program, strict=True):
             op.kind, op.unit = _KINDS[p.kind], index[p.unit.name]
-            if p.kind != "step":
+            op.every, op.phase = p.every, p.phase
+            if p.kind == "latch":
+                op.n, op.slots = len(p.slots), array(p.slots, np.int64)
+            elif p.kind != "step":
                 op.n = p.handle.n
                 op.vrs, op.buf = _address(p.handle.vrs), _address(p.handle.buf)
                 op.slots = array(p.slots, np.int64)
                 op.rules = array(p.rules, np.int64) if p.rules is not None else None
+                if p.drivers is not None and any(len(d) for d in p.drivers):
+                    op.dfirst = array(np.cumsum([0] + [len(d) for d in p.drivers]), np.int64)
+                    op.dslots = array(np.concatenate(p.drivers), np.int64)
+                if p.kind == "set" and p.fresh_drivers is not None and any(len(d) for d in p.fresh_drivers):
+                    op.ffirst = array(np.cumsum([0] + [len(d) for d in p.fresh_drivers]), np.int64)
+                    op.fslots = array(np.concatenate(p.fresh_drivers), np.int64)
+                if p.kind == "peek":
+                    op.n2, op.out = p.out_handle.n, p.out_slot
+                    op.vrs2, op.buf2 = _address(p.out_handle.vrs), _address(p.out_handle.buf)
         self._ops = ops
         self._unit_time = np.array([u.time for u in units], dtype=float)
         k = _Kernel()
@@ -186,6 +203,8 @@ class NativeStepper:
         now, before, earlier = algorithm.history
         k.n_values = len(values)
         k.values, k.now, k.before, k.earlier = (a.ctypes.data for a in (values, now, before, earlier))
+        k.grid = algorithm.grid.ctypes.data
+        k.peeked = algorithm.peeked.ctypes.data
         k.known = algorithm.known
         k.extrapolation = array(algorithm.extrapolation, float)
         k.start, k.stop, k.step, k.n_steps = start, stop, step, n_steps
@@ -209,13 +228,15 @@ class NativeStepper:
         code = self._library.run_steps(ctypes.byref(self._kernel), first, last, ctypes.byref(done))
         self.done = done.value
         self._algorithm.known = self._kernel.known
+        self._algorithm.steps_done = done.value
         for unit, t in zip(self._units, self._unit_time.tolist(), strict=True):
             unit.time = t
         if self._recorder is not None:
             self._recorder.count = done.value + 1
         if code == _FMI_FAILED:
             op = self._program[self._kernel.failed_op]
-            op.unit.raise_status(_FUNCTIONS[op.kind], self._kernel.failed_status)
+            kind = op.kind if op.kind != "peek" else ("get" if self._kernel.failed_get else "set")
+            op.unit.raise_status(_FUNCTIONS[kind], self._kernel.failed_status)
         elif code == _MONITOR:
             self.done = done.value - 1  # as in Python: the step whose values the monitor rejects is not done
             for observer in self._observers:

@@ -236,8 +236,8 @@ class CsvProcess:
     MIN_ROWS = 20_000
     """Fewer rows take less than a fork's worth of time to write: they are written in the run's own process."""
 
-    def __init__(self, pid: int, go: int, result: int) -> None:
-        self._pid, self._go, self._result = pid, go, result
+    def __init__(self, pid: int, go: int, result: int, path: Path | None = None) -> None:
+        self._pid, self._go, self._result, self._path = pid, go, result, path
 
     @staticmethod
     def wanted(rows: int, kinds: Sequence[str]) -> bool:
@@ -278,7 +278,8 @@ class CsvProcess:
                 os._exit(code)
         os.close(go_read)
         os.close(result_write)
-        return cls(pid, go_write, result_read)
+        os.set_blocking(go_write, False)  # a stopped child must not block the run (_send)
+        return cls(pid, go_write, result_read, Path(path))
 
     def rows(self, count: int) -> None:
         """The first ``count`` rows are recorded and will not change."""
@@ -286,15 +287,39 @@ class CsvProcess:
 
     def finish(self, count: int) -> None:
         """The run recorded ``count`` rows in all: the child writes the rest and puts the file in place."""
-        self._send(f"={count}\n")
+        self._send(f"={count}\n", final=True)
         self._close_go()
 
+    STALL_S = 60.0
+    """Longest the child may go without writing a byte once the run has ended [s]: then it is stopped."""
+    INCOMPLETE_SUFFIX = ".incomplete"
+    """The rows a child wrote before it died are kept as ``timeseries.csv.incomplete``."""
+
     def wait(self) -> None:
-        """Once the file is in place; :class:`OSError` if the child could not write it (or died)."""
+        """Once the file is in place; :class:`OSError` if the child could not write it, died, was stopped
+        (SIGSTOP) or wrote nothing for :attr:`STALL_S` (bounded: it is killed then). Rows a dead child had
+        written are kept under :attr:`INCOMPLETE_SUFFIX`, and the error names that file."""
+        import select
+        import time
+
         self._close_go()
         chunks = []
-        while chunk := os.read(self._result, 65536):
-            chunks.append(chunk)
+        last_size, quiet_since = -1, time.monotonic()
+        while True:
+            ready, _, _ = select.select([self._result], [], [], 0.5)
+            if ready:
+                chunk = os.read(self._result, 65536)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                continue
+            if self._stopped():
+                self._abandon("was stopped (SIGSTOP, or a debugger holds it)")
+            size = self._partial_size()
+            if size != last_size:
+                last_size, quiet_since = size, time.monotonic()
+            elif time.monotonic() - quiet_since > self.STALL_S:
+                self._abandon(f"wrote nothing for {self.STALL_S:g} s")
         status = self._reap()
         try:
             answer = json.loads(b"".join(chunks) or b"null")
@@ -303,9 +328,61 @@ class CsvProcess:
         if not isinstance(answer, dict):
             reason = (f"killed by signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status)
                       else f"exit code {os.WEXITSTATUS(status)}")
-            raise OSError(f"the process writing it ended without an answer ({reason})")
+            raise OSError(f"the process writing it ended without an answer ({reason}){self._keep_partial()}")
         if "error" in answer:
             raise OSError(answer["error"])
+
+    def _stopped(self) -> bool:
+        """Whether the child is stopped (state T or t in /proc/<pid>/stat)."""
+        try:
+            with open(f"/proc/{self._pid}/stat", "rb") as f:
+                state = f.read().rpartition(b")")[2].split()[0]
+        except (OSError, IndexError):
+            return False
+        return state in (b"T", b"t")
+
+    def _partials(self) -> list[Path]:
+        """The child's temporary file(s) (``.timeseries.csv.<random>.tmp``, as :func:`atomic_write` names it)."""
+        if self._path is None:
+            return []
+        return sorted(self._path.parent.glob(f".{self._path.name}.*.tmp"))
+
+    def _partial_size(self) -> int:
+        try:
+            return sum(p.stat().st_size for p in self._partials())
+        except OSError:
+            return -1
+
+    def _keep_partial(self) -> str:
+        """Keep the rows a dead child wrote as ``<name>.incomplete`` (whole rows only); the text naming it."""
+        parts = self._partials()
+        if not parts or self._path is None:
+            return ""
+        kept = self._path.with_name(self._path.name + self.INCOMPLETE_SUFFIX)
+        try:
+            data = parts[0].read_bytes()
+            end = data.rfind(b"\n") + 1
+            with open(parts[0], "r+b") as f:
+                f.truncate(end)
+            os.replace(parts[0], kept)
+            for extra in parts[1:]:
+                extra.unlink(missing_ok=True)
+        except OSError:
+            return ""
+        rows = max(data[:end].count(b"\n") - 1, 0)
+        return f"; the {rows} rows it wrote are kept in {kept.name} (the run is incomplete)"
+
+    def _abandon(self, why: str) -> None:
+        """Kill a child that cannot finish, keep what it wrote, and raise the OSError saying why."""
+        import signal
+
+        pid = self._pid
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
+        self._reap()
+        raise OSError(f"the process writing it (pid {pid}) {why}{self._keep_partial()}")
 
     def cancel(self) -> None:
         """No file: the child removes its temporary file and exits."""
@@ -318,12 +395,24 @@ class CsvProcess:
         except OSError:
             pass
 
-    def _send(self, text: str) -> None:
-        if self._go >= 0:
+    def _send(self, text: str, final: bool = False) -> None:
+        """Write to the child without ever blocking the run on it: the pipe is non-blocking, a row count that does
+        not fit is dropped (the next one says more), the final one is retried while the child runs, for at most
+        :attr:`STALL_S` (a stopped child: :meth:`wait` says so)."""
+        import select
+        import time
+
+        deadline = time.monotonic() + self.STALL_S
+        while self._go >= 0:
             try:
                 os.write(self._go, text.encode())
+                return
+            except BlockingIOError:
+                if not final or self._stopped() or time.monotonic() > deadline:
+                    return
+                select.select([], [self._go], [], 0.5)
             except OSError:
-                pass  # a child that ended early (it could not write the file): wait() says why
+                return  # a child that ended early (it could not write the file): wait() says why
 
     def _close_go(self) -> None:
         if self._go >= 0:

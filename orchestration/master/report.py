@@ -65,6 +65,7 @@ class RunDescription:
     values: dict[str, dict[str, Any]]  # unit -> parameter -> value used in the run
     model_names: dict[str, str]  # unit -> the FMU's model name
     labels: dict[str, str] = field(default_factory=dict)
+    held: frozenset[str] = frozenset()  # "unit.var" Real outputs held on the base grid (discrete, or a unit's own step)
 
     def value(self, unit: str, name: str) -> Any:
         """A parameter's value as the run used it, or None if the unit has no such parameter."""
@@ -249,12 +250,34 @@ def plot(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, folder: Path,
     return figures.made
 
 
+def non_finite(rec: Recorder) -> list[str]:
+    """One line per recorded numeric variable that took a non-finite value (NaN, +-inf), with when it first did."""
+    numeric = [k for k, kind in enumerate(rec.kinds) if kind != "string"]
+    if not rec.count or not numeric:
+        return []
+    block = rec.data[: rec.count]
+    bad = ~np.isfinite(block[:, numeric] if len(numeric) != block.shape[1] else block)
+    out = []
+    for j in np.flatnonzero(bad.any(axis=0)):
+        row, col = int(np.argmax(bad[:, j])), numeric[j]
+        out.append(f"non-finite value: {rec.names[col]} = {block[row, col]} at t = {rec.times[row]:.6g} s")
+    return out
+
+
 def report_summary(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, run: RunDescription,
                    reserved: set[str] | frozenset[str] = frozenset()) -> dict[str, Any]:
-    """The application's summary entries (without ``reserved`` keys), then the engine's ``variables`` table."""
+    """Numerical validity, the application's summary entries (without ``reserved`` keys), the ``variables`` table.
+
+    ``valid`` is false when any reason is found: a recorded value that is not finite (the engine's), or one
+    of the application's ``invalid_reasons`` (its hook returns them under that key: e.g. an energy balance
+    that does not close). A physical result (a limit exceeded) is not such a reason.
+    """
     added = hook.summarize(spec, rec, run) if hook is not None and hook.summarize is not None else {}
     generic = summarize(rec)
-    return {k: v for k, v in added.items() if k not in reserved and k not in generic} | generic
+    reasons = non_finite(rec) + [str(r) for r in added.pop("invalid_reasons", None) or []]
+    validity = {"valid": not reasons, "invalid_reasons": reasons}
+    return validity | {k: v for k, v in added.items() if k not in reserved and k not in generic
+                       and k not in validity} | generic
 
 
 class PlotFailed(OSError):

@@ -55,6 +55,7 @@ from orchestration.master.unit import (
     exchange_kind,
     value_range,
 )
+from orchestration.master.unit_check import connection_units, warn_once
 from orchestration.master.yaml_source import DataFile
 
 _QUOTED = r"""(?:'[^'\n]*'|"[^"\n]*")"""
@@ -203,6 +204,7 @@ class SystemPlan:
     report: ReportSpec = field(default_factory=ReportSpec)  # the report section, as the application's model read it
     report_hook: ReportHook | None = None  # the application's summary entries and figures
     input_hashes: dict[str, str | None] = field(default_factory=dict)  # FMU and data file -> SHA-256 when checked
+    periods: dict[str, int] = field(default_factory=dict)  # unit -> its own step in base steps (absent: 1)
 
     def changed_inputs(self) -> list[str]:
         """The FMUs and data files whose content differs from when they were checked (SHA-256), one text each.
@@ -245,7 +247,7 @@ class SystemPlan:
         """The coupling algorithm for these units, as the scenario chose it."""
         sim = self.loaded.scenario.simulation
         return CouplingAlgorithm(units, self.links, self.recorded + list(self.limits), sim.algorithm, sim.order,
-                                 sim.inputs)
+                                 sim.inputs, self.periods)
 
 
 @dataclass(frozen=True)
@@ -369,6 +371,8 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         if desc is not None and hooks.parameter_check is not None and len(problems) == unit_problems:
             problems += _domain_problems(loaded, name, desc, fmu_paths[name], parameters[name], hooks)
 
+    periods = _unit_periods(loaded, descriptions, problems)
+
     def port(ref: VariableRef, causality: str, *key: Any, also: tuple[str, ...] = ()) -> Port | None:
         desc = descriptions.get(ref.unit)
         if ref.unit not in sc.units:
@@ -409,16 +413,26 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
                 f"enumeration mismatch: {conn.source} has items {_items(vs)}, {conn.target} has {_items(vd)}",
                 "connections", k))
             continue
-        if vs.unit and vd.unit and vs.unit != vd.unit:
-            problems.append(loaded.problem(f"unit mismatch: {conn.source} is in {vs.unit}, {conn.target} in {vd.unit}",
-                                           "connections", k))
+        unit_problem, unit_warning = connection_units(str(conn.source), str(conn.target), vs.unit, vd.unit)
+        if unit_problem:
+            problems.append(loaded.problem(unit_problem, "connections", k))
             continue
+        if unit_warning:
+            warn_once(unit_warning)
         if dst in driven:
             problems.append(loaded.problem(f"{conn.target} is already driven by connections[{driven[dst]}]",
                                            "connections", k))
             continue
         driven[dst] = k
         links.append(Link(src, dst, conn.delayed))
+
+    for link in links:  # the grid rules of units with their own step are the Real fast path's
+        for end in (link.source, link.target):
+            var = descriptions[end[0]].variables[end[1]]
+            if end[0] in periods and not var.fast_real:
+                problems.append(loaded.problem(
+                    f"{end[0]}.{end[1]} is {var.fmi_type} and connected: a unit with its own step exchanges Real "
+                    f"values only (leave units.{end[0]}.step out)", "units", end[0], "step"))
 
     for name, desc in descriptions.items():
         for var in desc.inputs():
@@ -446,6 +460,11 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         p = port(ref, "output", "report", *key)
         if p is not None and p not in recorded:
             recorded.append(p)
+    for ref in report.optional_variables() if report is not None else ():  # recorded where the unit has them
+        var = descriptions[ref.unit].variables.get(ref.name) if ref.unit in descriptions else None
+        if (var is not None and var.causality in ("output", "local") and _not_exchanged(var) is None
+                and (ref.unit, ref.name) not in recorded):
+            recorded.append((ref.unit, ref.name))
     limits: dict[Port, float] = {}
     for text, limit in sc.limits.max_abs.items():
         p = port(VariableRef.parse(text), "output", "limits", "max_abs", text)
@@ -477,7 +496,32 @@ def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: Res
         raise ScenarioError(problems)
     provenance = hooks.provenance() if hooks.provenance is not None else {}
     return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files, provenance,
-                      report, hooks.report, hashes)
+                      report, hooks.report, hashes, periods)
+
+
+def _unit_periods(loaded: LoadedScenario, descriptions: dict[str, UnitDescription],
+                  problems: list[Problem]) -> dict[str, int]:
+    """Each unit's own step (``units.NAME.step``) as a whole number of base steps; problems appended.
+
+    A unit that has no communication step of its own cannot take one: a model-exchange unit is
+    integrated by the master, on the base grid, with its inputs held over each base step.
+    """
+    from orchestration.master.fmi2_me_unit import runs_as_model_exchange
+
+    sim = loaded.scenario.simulation
+    periods: dict[str, int] = {}
+    for name, spec in loaded.scenario.units.items():
+        if spec.step is None:
+            continue
+        m, text = sim.step_multiple(spec.step)
+        if text is None and name in descriptions and runs_as_model_exchange(loaded.fmu_path(name), spec.interface):
+            text = ("a model-exchange unit has no communication step of its own: the master integrates it on the "
+                    f"base grid (simulation.step); leave units.{name}.step out, or run its co-simulation interface")
+        if text is not None:
+            problems.append(loaded.problem(text, "units", name, "step"))
+        elif m > 1:
+            periods[name] = m
+    return periods
 
 
 def _domain_problems(loaded: LoadedScenario, name: str, desc: UnitDescription, path: Path, values: dict[str, Any],

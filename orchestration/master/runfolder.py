@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import math
 import os
 import uuid
 from collections.abc import Sequence
@@ -15,6 +16,12 @@ from typing import Any
 
 from mre_common.atomic_files import atomic_write, atomic_write_text
 from mre_common.folder_claim import claim_folder
+from mre_common.fs_limits import name_problem, path_problem
+
+STAMP_RESERVE = len("-20261202T063000Z-999")
+"""Bytes a run folder's name gets after the scenario's name (UTC time stamp, numeric suffix)."""
+INSIDE_RESERVE = len("/.timeseries.csv.incomplete.XXXXXXXX.tmp") + 16
+"""Bytes kept for the longest name a run writes inside its folder."""
 
 
 class RunFolderExists(FileExistsError):
@@ -54,8 +61,11 @@ def _claim(folder: Path, created: bool) -> None:
 def _why(exc: OSError, path: Path) -> str:
     """A short reason for a failed folder creation, naming a file that stands where a folder must be."""
     for parent in (path, *path.parents):
-        if parent.exists() and not parent.is_dir():
-            return f"{parent} is a file, not a folder"
+        try:
+            if parent.exists() and not parent.is_dir():
+                return f"{parent} is a file, not a folder"
+        except OSError:  # a name beyond the file system's limits (ENAMETOOLONG), a loop: not a file standing there
+            continue
     where = f"{exc.filename}: " if exc.filename and str(exc.filename) != str(path) else ""
     return where + (exc.strerror or str(exc))
 
@@ -96,7 +106,10 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     that cannot be created or written raises :class:`RunFolderUnusable` naming the path.
     """
     if explicit is not None:
-        explicit = Path(explicit)
+        explicit = Path(os.path.abspath(explicit))  # resolved now: a later os.chdir cannot move it
+        problem = path_problem(explicit, INSIDE_RESERVE)
+        if problem:
+            raise RunFolderUnusable(f"--out {problem}: choose a shorter --out (nothing was written)")
         parents = _missing_ancestors(explicit.parent)
         try:
             try:
@@ -127,6 +140,12 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     if not name or any(c in name for c in "/\\\x00") or name.startswith("."):
         raise RunFolderUnusable(f"{name!r} cannot name a run folder inside {base}: a plain name is needed "
                                 "(no '/' or '\\', not starting with '.'); nothing was written")
+    base = Path(os.path.abspath(base))  # resolved now: a later os.chdir (a unit's script) cannot move it
+    problem = name_problem(name, base, STAMP_RESERVE) or path_problem(base, INSIDE_RESERVE + STAMP_RESERVE
+                                                                         + len(os.fsencode(name)))
+    if problem:
+        raise RunFolderUnusable(f"run folder {problem}: choose a shorter name or results.dir, or pass --out "
+                                "(nothing was written)")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     try:
         base.mkdir(parents=True, exist_ok=True)
@@ -147,9 +166,38 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     raise RunFolderExists(f"no free run folder name under {base}")
 
 
+NON_FINITE_KEY = "non_finite"
+"""Key of a JSON object's list of the values written as null because they were not finite: {path: reason}."""
+
+
+def _finite_only(value: Any, path: str, found: dict[str, str]) -> Any:
+    """``value`` with every non-finite float replaced by None, each one's path and reason put in ``found``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        found[path or "$"] = "not a number (nan)" if math.isnan(value) else f"infinite ({value})"
+        return None
+    if isinstance(value, dict):
+        return {k: _finite_only(v, f"{path}.{k}" if path else str(k), found) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_only(v, f"{path}[{i}]", found) for i, v in enumerate(value)]
+    if type(value).__module__ == "numpy" and hasattr(value, "item"):  # a NumPy scalar or array
+        return _finite_only(value.tolist(), path, found)
+    return value
+
+
+def strict_json_data(data: Any) -> Any:
+    """``data`` as strict JSON allows (RFC 8259: no NaN or Infinity): each non-finite number is written as null,
+    and a top-level object lists it under :data:`NON_FINITE_KEY` with its reason."""
+    found: dict[str, str] = {}
+    clean = _finite_only(data, "", found)
+    if found and isinstance(clean, dict):
+        clean[NON_FINITE_KEY] = {**(clean.get(NON_FINITE_KEY) or {}), **found}
+    return clean
+
+
 def write_json(path: Path, data: Any) -> None:
-    """Write JSON atomically."""
-    atomic_write(path, lambda f: json.dump(data, f, indent=2, default=str))
+    """Write strict JSON atomically (non-finite numbers as null with their reason: :func:`strict_json_data`)."""
+    clean = strict_json_data(data)
+    atomic_write(path, lambda f: json.dump(clean, f, indent=2, default=str, allow_nan=False))
 
 
 def write_text(path: Path, text: str) -> None:

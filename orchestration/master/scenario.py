@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
 import shutil
 from pathlib import Path
@@ -104,6 +105,9 @@ class UnitSpec(_Strict):
         None, description="co-simulation or model-exchange (default: co-simulation when the FMU has it)")
     relative_tolerance: Annotated[Number, Field(gt=0, lt=1)] | None = Field(
         None, description="relative tolerance of the model-exchange solver (default 1e-6)")
+    step: Annotated[Number, Field(gt=0)] | None = Field(
+        None, description="the unit's own communication step [s]: a whole multiple of simulation.step "
+                          "(default: simulation.step)")
 
     @model_validator(mode="after")
     def _tolerance_needs_model_exchange(self) -> UnitSpec:
@@ -165,6 +169,27 @@ class SimulationSpec(_Strict):
         """Number of communication steps."""
         return round((self.stop_time - self.start_time) / self.step)
 
+    def step_multiple(self, unit_step: float) -> tuple[int, str | None]:
+        """A unit's own step [s] as a whole number m of base steps: (m, None), or (0, why not).
+
+        ``unit_step`` must be at least ``step``, a whole multiple of it (to 1e-9 relative) and
+        divide the simulated span, so that every unit's last step ends on ``stop_time``.
+        """
+        if not unit_step > 0:
+            return 0, f"must be positive, got {unit_step!r} s"
+        if unit_step < self.step * (1 - 1e-9):
+            return 0, f"{unit_step:g} s is smaller than simulation.step ({self.step:g} s): a unit steps at most " \
+                      "as often as the base step"
+        m = round(unit_step / self.step)
+        if abs(m * self.step - unit_step) > 1e-9 * unit_step:
+            return 0, (f"{unit_step:g} s is not a whole multiple of simulation.step ({self.step:g} s): it is "
+                       f"{unit_step / self.step:.6g} base steps")
+        if self.n_steps % m:
+            span = self.stop_time - self.start_time
+            return 0, (f"{unit_step:g} s does not divide the simulated span ({span:g} s = {self.n_steps} base steps "
+                       f"of {self.step:g} s, not a multiple of {m}): the unit's last step must end on stop_time")
+        return m, None
+
 
 class ResultsSpec(_Strict):
     """Where run folders go (relative to the working directory)."""
@@ -217,6 +242,11 @@ class ReportSpec(_Strict):
             elif isinstance(value, list):
                 out += [((name, k), v) for k, v in enumerate(value) if isinstance(v, VariableRef)]
         return out
+
+    def optional_variables(self) -> list[VariableRef]:
+        """Variables the application's report reads when the unit has them (an output or a local): recorded
+        then, and no problem when the unit lacks them (another FMU in its place). None by default."""
+        return []
 
     def templates(self) -> list[tuple[tuple[str, ...], str]]:
         """Every text that may name ``{unit.param}``, with its key (checked against the scenario's units).
@@ -469,7 +499,7 @@ CSV_BYTES_PER_VALUE = 20  # the most '%.12g' and its separator take ("-1.2345678
 def _free_bytes(folder: Path) -> int:
     """Free disk space [B] where ``folder`` is or would be created (its nearest existing ancestor)."""
     probe = Path(folder).absolute()
-    while not probe.exists() and probe != probe.parent:
+    while not os.path.exists(probe) and probe != probe.parent:  # False (not an error) for a name too long
         probe = probe.parent
     try:
         return shutil.disk_usage(probe).free

@@ -92,7 +92,9 @@ def describe_run(plan: SystemPlan) -> RunDescription:
                     if v.causality == "parameter" and v.start is not None}
         values[unit] = declared | plan.parameters.get(unit, {})
     names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
-    return RunDescription(values, names, dict(plan.report.labels))
+    held = frozenset(f"{unit}.{v.name}" for unit, desc in plan.descriptions.items() for v in desc.variables.values()
+                     if v.causality == "output" and (v.variability == "discrete" or plan.periods.get(unit, 1) > 1))
+    return RunDescription(values, names, dict(plan.report.labels), held)
 
 
 def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: RunDescription) -> None:

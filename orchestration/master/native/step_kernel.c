@@ -20,8 +20,8 @@ typedef int (*set_real_fn)(void *, const unsigned int *, size_t, const double *)
 typedef int (*get_real_fn)(void *, const unsigned int *, size_t, double *);
 typedef int (*do_step_fn)(void *, double, double, int);
 
-enum { OP_SET = 0, OP_STEP = 1, OP_GET = 2 };
-enum { RULE_START = 0, RULE_FRESH = 1, RULE_MEAN = 2, RULE_EXTRAPOLATED = 3 };
+enum { OP_SET = 0, OP_STEP = 1, OP_GET = 2, OP_LATCH = 3, OP_PEEK = 4 };
+enum { RULE_START = 0, RULE_FRESH = 1, RULE_MEAN = 2, RULE_EXTRAPOLATED = 3, RULE_GRID = 4 };
 enum { DONE = 0, FMI_FAILED = 1, MONITOR = 2 };
 
 typedef struct {
@@ -30,6 +30,14 @@ typedef struct {
     double *buf;             /* the handle's value buffer */
     const int64_t *slots;       /* per value: slot in the value arrays */
     const int64_t *rules;       /* OP_SET only: per value, RULE_* */
+    int64_t every, phase;       /* the op runs in the steps s with s % every == phase */
+    const int64_t *dfirst;      /* OP_SET: per value j, its held drivers are dslots[dfirst[j] .. dfirst[j + 1]) */
+    const int64_t *dslots;      /* (NULL: no value has drivers) */
+    const int64_t *ffirst;      /* OP_SET: the drivers known before the step, fslots[ffirst[j] .. ffirst[j + 1]) */
+    const int64_t *fslots;      /* (NULL: none); when one changed, the value is peeked[slot] */
+    int64_t n2, out;            /* OP_PEEK: outputs to read (1) and the slot its value goes to in peeked */
+    const unsigned int *vrs2;   /* OP_PEEK: the output's value reference and buffer */
+    double *buf2;
 } Op;
 
 typedef struct {
@@ -46,6 +54,8 @@ typedef struct {
     /* exchanged values: latest, and the history at t, t - h, t - 2h */
     int64_t n_values;
     double *values, *now, *before, *earlier;
+    double *grid;                  /* per slot: its value at its unit's last grid point (OP_LATCH, RULE_GRID) */
+    double *peeked;                /* per slot: its value at t with new held inputs (OP_PEEK) */
     int64_t known;                 /* how many history entries are real */
     const double *extrapolation; /* 3 x 3 coefficients, row = min(known, 3) - 1 */
     /* time grid */
@@ -60,17 +70,36 @@ typedef struct {
     const int64_t *limit_slots;
     const double *limits;
     /* result */
-    int64_t failed_op, failed_status;
+    int64_t failed_op, failed_status, failed_get; /* failed_get: an OP_PEEK failed in its get (not its set) */
 } Kernel;
 
 static double time_of(const Kernel *k, int64_t step) {
     return step == k->n_steps ? k->stop : k->start + (double)step * k->step;
 }
 
-static int run_program(Kernel *k, double t, double h) {
-    const double *c = k->extrapolation + 3 * ((k->known < 3 ? k->known : 3) - 1);
+/* How many of an output's values at t, t - h, t - 2h were computed with the present held inputs
+ * (as algorithm.usable_history): 1 if a driver differs between t and t - h, 2 if between t - h and t - 2h. */
+static int64_t usable_history(const Kernel *k, const int64_t *drivers, int64_t n) {
+    for (int64_t d = 0; d < n; ++d)
+        if (k->now[drivers[d]] != k->before[drivers[d]]) return 1;
+    for (int64_t d = 0; d < n; ++d)
+        if (k->before[drivers[d]] != k->earlier[drivers[d]]) return 2;
+    return 3;
+}
+
+/* Did one of the drivers change in this step (latest value != value at t)? */
+static int jumped(const Kernel *k, const int64_t *drivers, int64_t n) {
+    for (int64_t d = 0; d < n; ++d)
+        if (k->values[drivers[d]] != k->now[drivers[d]]) return 1;
+    return 0;
+}
+
+static int run_program(Kernel *k, int64_t step, double t, double h) {
+    int64_t known = k->known < 3 ? k->known : 3;
+    const double *c = k->extrapolation + 3 * (known - 1);
     for (int64_t o = 0; o < k->n_ops; ++o) {
         const Op *op = &k->ops[o];
+        if (op->every > 1 && step % op->every != op->phase) continue;
         void *component = k->components[op->unit];
         int status;
         if (op->kind == OP_SET) {
@@ -80,14 +109,49 @@ static int run_program(Kernel *k, double t, double h) {
                 case RULE_START: op->buf[j] = k->now[s]; break;
                 case RULE_FRESH: op->buf[j] = k->values[s]; break;
                 case RULE_MEAN: op->buf[j] = 0.5 * (k->now[s] + k->values[s]); break;
-                default: op->buf[j] = c[0] * k->now[s] + c[1] * k->before[s] + c[2] * k->earlier[s];
+                case RULE_GRID: op->buf[j] = k->grid[s]; break;
+                default: {
+                    const double *cj = c;
+                    int64_t nf = op->fslots ? op->ffirst[j + 1] - op->ffirst[j] : 0;
+                    if (nf > 0 && jumped(k, op->fslots + op->ffirst[j], nf)) {
+                        op->buf[j] = k->peeked[s];
+                        break;
+                    }
+                    int64_t nd = op->dslots ? op->dfirst[j + 1] - op->dfirst[j] : 0;
+                    double second = k->before[s], third = k->earlier[s];
+                    if (nd > 0) {
+                        int64_t usable = usable_history(k, op->dslots + op->dfirst[j], nd);
+                        if (usable < 3 && nf == nd) { /* the peeked value stands in for the one at the restart */
+                            cj = k->extrapolation + 3 * usable;
+                            if (usable == 1) second = k->peeked[s];
+                            else third = k->peeked[s];
+                        } else {
+                            cj = k->extrapolation + 3 * ((known < usable ? known : usable) - 1);
+                        }
+                    }
+                    op->buf[j] = cj[0] * k->now[s] + cj[1] * second + cj[2] * third;
+                }
                 }
             }
             status = k->set_real[op->unit](component, op->vrs, (size_t)op->n, op->buf);
+        } else if (op->kind == OP_PEEK) {
+            if (!jumped(k, op->slots, op->n)) continue;
+            for (int64_t j = 0; j < op->n; ++j) op->buf[j] = k->values[op->slots[j]];
+            status = k->set_real[op->unit](component, op->vrs, (size_t)op->n, op->buf);
+            k->failed_get = 0;
+            if (status <= 1) {
+                k->failed_get = 1;
+                status = k->get_real[op->unit](component, op->vrs2, (size_t)op->n2, op->buf2);
+                if (status <= 1) k->peeked[op->out] = op->buf2[0];
+            }
+        } else if (op->kind == OP_LATCH) {
+            for (int64_t j = 0; j < op->n; ++j) k->grid[op->slots[j]] = k->values[op->slots[j]];
+            continue;
         } else if (op->kind == OP_STEP) {
+            double dt = op->every == 1 ? h : time_of(k, step + op->every) - t;
             k->unit_time[op->unit] = t;
-            status = k->do_step[op->unit](component, t, h, 1);
-            if (status <= 1) k->unit_time[op->unit] = t + h;
+            status = k->do_step[op->unit](component, t, dt, 1);
+            if (status <= 1) k->unit_time[op->unit] = t + dt;
         } else {
             status = k->get_real[op->unit](component, op->vrs, (size_t)op->n, op->buf);
             if (status <= 1)
@@ -127,7 +191,7 @@ static int observe(Kernel *k, int64_t row, double t) {
 int run_steps(Kernel *k, int64_t first, int64_t last, int64_t *done) {
     for (int64_t s = first; s < last; ++s) {
         double t = time_of(k, s), t_next = time_of(k, s + 1);
-        int code = run_program(k, t, t_next - t);
+        int code = run_program(k, s, t, t_next - t);
         if (code != DONE) {
             *done = s;
             return code;
