@@ -79,6 +79,7 @@ class CosimRun:
     reasons: list[str]
     seconds: float
     stop_time: float
+    controller_grid_peaks: dict[str, float]  # the same peaks over the controller's sample instants only
 
 
 def cosimulate(record: str, strategy: str, plant_step: float, controller_step: float, stop_time: float | None,
@@ -107,11 +108,12 @@ def cosimulate(record: str, strategy: str, plant_step: float, controller_step: f
     s = json.loads((out / "summary.json").read_text())
     data = pd.read_csv(out / "timeseries.csv", usecols=list(COSIM_NAMES.values()))
     complete = bool(s.get("complete", done.returncode == 0))
-    peaks = {k: float(np.max(np.abs(data[name].to_numpy()))) if complete else math.nan
-             for k, name in COSIM_NAMES.items()}
+    stride = max(1, round(controller_step / plant_step))
+    peaks, on_controller_grid = ({k: float(np.max(np.abs(data[name].to_numpy()[::n]))) if complete else math.nan
+                                  for k, name in COSIM_NAMES.items()} for n in (1, stride))
     return CosimRun(peaks, str(s.get("status", "complete" if complete else "failed")), s.get("valid"),
                     list(s.get("invalid_reasons") or []) + ([str(s["error"])] if s.get("error") else []), seconds,
-                    float(plan.loaded.scenario.simulation.stop_time))
+                    float(plan.loaded.scenario.simulation.stop_time), on_controller_grid)
 
 
 @functools.lru_cache(maxsize=8)

@@ -148,16 +148,20 @@ def test_record_playback_is_the_ground_units():
 @pytest.mark.slow
 def test_clipped_optimal_on_el_centro_converges_with_the_controller_at_one_millisecond(tmp_path):
     """The issue's case: El Centro x0.5, the whole record, clipped-optimal on the paper's law, controller at 1 ms.
-    The co-simulation's peaks of x_0, a_3 and F move by at most 1 % between plant steps of 1 ms and 0.25 ms, and
-    each is within 1 % of the sampled-data reference (same latency, recorded on the same grid)."""
+    The co-simulation's peaks of x_0, a_3 and F move by at most 1 % between plant steps of 1 ms and 0.25 ms (both
+    read at the controller's samples: the finer run's other points alone raise F's peak by about 2 %, the
+    reference's too), and each is within 1 % of the sampled-data reference (same timing, same grid)."""
     if not cases.multirate_supported():
         pytest.skip("units.NAME.step (a unit's own communication step) is not in the scenario schema yet")
     run, change, _ = cases.reference("elcentro", "clipped-optimal", H, 4, None)
     assert not run.stopped and change < 1e-4
     refs = {1e-3: run.peaks(stride=4), 2.5e-4: run.peaks()}
-    got = {h: cases.cosimulate("elcentro", "clipped-optimal", h, H, None, tmp_path / f"h{h:g}").peaks for h in refs}
+    runs = {h: cases.cosimulate("elcentro", "clipped-optimal", h, H, None, tmp_path / f"h{h:g}") for h in refs}
+    got = {h: r.peaks for h, r in runs.items()}
     keys = ("x_0", "a_3", "F")
-    step_change = {k: abs(got[2.5e-4][k] - got[1e-3][k]) / got[2.5e-4][k] for k in keys}
+    # on the same grid (the controller's samples): a finer grid alone finds a larger peak of a signal that jumps
+    fine = runs[2.5e-4].controller_grid_peaks
+    step_change = {k: abs(fine[k] - got[1e-3][k]) / fine[k] for k in keys}
     errors = {(k, h): abs(got[h][k] - refs[h][k]) / refs[h][k] for k in keys for h in refs}
     report = {"step change": step_change, "error against the reference": errors}
     assert max(step_change.values()) <= 0.01, report

@@ -230,6 +230,9 @@ class VariantPlanner:
         assert sensors is not None
         out += [f"units.{SENSORS}.fmu={unit_fmu(study, 'sensors_fmu')}",
                 f"units.{SENSORS}.parameters.delay={sensors.delay}", f"units.{SENSORS}.parameters.seed={sensors.seed}"]
+        step = (self._tree(record).get("units") or {}).get(CONTROLLER, {}).get("step")
+        if step is not None:  # the delay is counted in the sensors' own steps: they sample as the controller does
+            out.append(f"units.{SENSORS}.step={step!r}")
         used = dict.fromkeys(CHANNELS, 0)
         channel: dict[str, str] = {}  # source port -> channel
         new = []
