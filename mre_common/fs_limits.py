@@ -82,6 +82,18 @@ def path_problem(path: str | os.PathLike[str], reserve: int = 0) -> str | None:
     return None
 
 
+def writable_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why a file or folder at ``path`` cannot be created (an ancestor is not a folder, or the nearest existing
+    folder is not writable), or None. Checked before any work, so that it is not lost at the end."""
+    parent = Path(os.path.abspath(path)).parent
+    existing = _existing(parent)
+    if not existing.is_dir():
+        return f"{str(path)[:80]!r} is below {str(existing)[:80]!r}, which is not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"{str(path)[:80]!r} cannot be created: the folder {str(existing)[:80]!r} is not writable"
+    return None
+
+
 def plain_name_problem(name: object) -> str | None:
     """Why ``name`` cannot be one entry of a folder (a separator, NUL, ``.``/``..``, a leading dot, empty), or
     None. Its length is :func:`name_problem`'s."""

@@ -203,6 +203,21 @@ def test_tune_writes_no_gains_file_from_a_non_finite_objective(tmp_path, monkeyp
     assert "not finite" in capsys.readouterr().err
 
 
+def test_tune_refuses_a_gains_file_it_could_not_write_before_any_work(tmp_path, monkeypatch, capsys):
+    """--out below a file is exit 2 naming it, before the pool starts or any simulation runs."""
+    from orchestration.case_study import tuning
+
+    def never(*a, **k):
+        raise AssertionError("the tuning started")
+
+    monkeypatch.setattr(tuning, "tune_and_check", never)
+    (tmp_path / "precious.txt").write_text("keep")
+    assert tuning.main([str(STUDY), "--out", str(tmp_path / "precious.txt" / "g.yaml"), "--force", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "precious.txt" in err and "not a folder" in err, err
+    assert (tmp_path / "precious.txt").read_text() == "keep"
+
+
 # -- class 4: stores and folders read defensively --------------------------------------------------------------
 def result(peak: float = 0.0123) -> dict:
     return {"label": "elcentro/sosm", "ok": True, "status": "ok", "value": {"peak_base_displacement_m": peak},
@@ -361,11 +376,17 @@ def test_a_study_extending_a_shipped_one_resolves_inherited_paths_against_the_sh
     own.mkdir()
     (own / "extra.yaml").write_text("stop_time: 1.0\n")
     f = own / "study.yaml"
+    shipped = STUDY.parent
+    f.write_text(f"extends: {STUDY}\nname: mine\n")  # the shipped records, found in the shipped folder
+    study = load_study(f)
+    assert list(study.spec.records) == ["elcentro", "hachinohe", "northridge", "kobe"]
+    assert study.scenario_path("elcentro") == (shipped / "elcentro.yaml").resolve()
     f.write_text(f"extends: {STUDY}\nname: mine\nrecords:\n  extra: extra.yaml\n")
     study = load_study(f)
-    shipped = STUDY.parent
-    assert study.scenario_path("elcentro") == (shipped / "elcentro.yaml").resolve()
+    assert list(study.spec.records) == ["extra"]  # records replace the parent's: the study runs these only
     assert study.scenario_path("extra") == (own / "extra.yaml").resolve()
+    assert study.lines[("records", "extra")][0] == str(f)
+    assert ("records", "elcentro") not in study.lines  # nor its line
     assert study.gains_path == (shipped / "sosm_gains.yaml").resolve()
     f.write_text(f"extends: {STUDY}\ngains: my_gains.yaml\n")
     assert load_study(f).gains_path == (own / "my_gains.yaml").resolve()

@@ -48,6 +48,7 @@ from components.physics.monolithic import SystemSetup, Trajectory
 from components.physics.mre_isolator_core import TABLE2, GeneralizedCoefficients
 from components.physics.shear_building_core import BuildingParams
 from components.physics.sosm_controller_core import HAND_PICKED_GAINS, SosmGains
+from mre_common.guard import invoked_as
 from orchestration.case_study.case_config import LoadedStudy, ObjectiveSpec, StudySpec, TuningSpec, load_study
 from orchestration.engine_hooks import PROJECT_DIR, plan_scenario
 from orchestration.inprocess import simulate_coupled
@@ -539,7 +540,7 @@ def pool_evaluate(pool: Any, plan: SystemPlan) -> Evaluate:
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """Command-line arguments of tune.py."""
-    parser = argparse.ArgumentParser(prog="tune.py", description="Tune the SOSM gains of a study.")
+    parser = argparse.ArgumentParser(prog=invoked_as("tune.py"), description="Tune the SOSM gains of a study.")
     parser.add_argument("study", type=Path, help="study YAML file (scenarios/case_study.yaml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a study key (e.g. tuning.max_evals=10)")
@@ -588,9 +589,10 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             raise ScenarioError(f"{where}.record {unknown} is not one of the records {list(spec.records)}")
         out = args.out if args.out is not None else study.gain_set_path(args.gain_set)
-        from mre_common.fs_limits import path_problem
+        from mre_common.fs_limits import path_problem, writable_problem
 
-        if (problem := path_problem(out, 32)) is not None:  # the atomic write's temporary name is longer
+        # the atomic write's temporary name is longer; a file that cannot be written is said before the tuning
+        if (problem := path_problem(out, 32) or writable_problem(out)) is not None:
             raise ScenarioError(f"{'--out' if args.out is not None else 'gains'}: {problem}")
         if out.exists() and not args.force:
             print(f"error: {out} exists: pass --force to replace it", file=sys.stderr)
