@@ -48,6 +48,39 @@ class UsageError(Exception):
 ErrorTypes = tuple[type[BaseException], ...]
 
 
+_invoked_as: str | None = None
+
+
+def set_invoked_as(name: str | None) -> None:
+    """The command a user typed for the tool about to run (``mre-cosim run``), shown in its usage lines."""
+    global _invoked_as
+    _invoked_as = name
+
+
+def invoked_as(script: str) -> str:
+    """A tool's program name for argparse: ``mre-cosim TOOL`` when the console command runs it, else ``script``."""
+    return _invoked_as or script
+
+
+def _stdout_closed() -> bool:
+    """True if standard output's reader has gone (its pipe is broken); stdout then points at /dev/null, so that
+    the interpreter's own flush at exit prints nothing either."""
+    import select  # built in
+
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        if not any(event & select.POLLERR for _, event in poller.poll(0)):  # a pipe without reader: POLLERR
+            return False
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+        return True
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def crash_log(prog: str, exc: BaseException, argv: Sequence[str] | None) -> str | None:
     """Write the traceback of an unexpected error to a new log file; its path, or None if none could be written."""
     import platform
@@ -145,6 +178,8 @@ def guarded(
             raise  # GeneratorExit and other interpreter-level signals
         import errno  # built in, like _signal
 
+        if isinstance(exc, BrokenPipeError) and _stdout_closed():  # `tool --help | head`: the reader left
+            return EXIT_FAILED
         if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):  # the disk, not a bug
             where = f" {exc.filename}" if exc.filename else " its output"
             _print(f"{prog}: could not write{where}: {exc.strerror or exc}; the output is incomplete (every file "

@@ -26,11 +26,14 @@ from mre_common.guard import (
     ErrorTypes,
     UsageError,
     guarded,
+    invoked_as,
     quiet_interrupts,
+    set_invoked_as,
 )
 
 __all__ = ["EPILOG_COMMON", "EXIT_BUG", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "UsageError",
-           "engine_errors", "quiet_interrupts", "run_tool", "show_unit_messages", "with_epilog"]
+           "engine_errors", "invoked_as", "quiet_interrupts", "run_tool", "set_invoked_as", "show_unit_messages",
+           "with_epilog"]
 
 
 def engine_errors() -> ErrorTypes:

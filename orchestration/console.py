@@ -66,11 +66,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             what += f"; did you mean {close[0]!r}?"
         print(f"{usage()}\n\n{PROG}: error: {what} (choose from {', '.join(TOOLS)})", file=sys.stderr)
         return EXIT_USAGE
+    from mre_common.guard import set_invoked_as
+
     if argv is None:  # the console command: Ctrl-C while the tool's modules import is one line and exit 130
         from orchestration.cli import quiet_interrupts
 
         quiet_interrupts()
-    return tool_main(args[0])(args[1:])
+    set_invoked_as(f"{PROG} {args[0]}")  # its usage lines say what the user typed, not the script's name
+    try:
+        return tool_main(args[0])(args[1:])
+    finally:
+        set_invoked_as(None)
 
 
 if __name__ == "__main__":

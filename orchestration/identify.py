@@ -47,7 +47,7 @@ from typing import Any
 from components.identification.generalized import GeneralizationError
 from components.identification.testdata import TestDataError
 from orchestration.batch import default_workers
-from orchestration.cli import EPILOG_COMMON, run_tool
+from orchestration.cli import EPILOG_COMMON, invoked_as, run_tool
 from orchestration.identification.ident_config import ConfigError, load_config
 from orchestration.identification.ident_pipeline import PARALLEL_MIN_S, run
 from orchestration.identification.ident_report import summary_text
@@ -97,7 +97,7 @@ def check_config_file(path: Path) -> None:
 
 def _identify(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(
-        prog="identify.py", description="Identify the MRE isolator models (paper section 3).",
+        prog=invoked_as("identify.py"), description="Identify the MRE isolator models (paper section 3).",
         epilog="exit codes: 0 done (non-converged identifications are reported); 1 some did not converge and "
                "--strict was given; 2 configuration or data error, or an output folder it may not replace "
                "(nothing written); " + EPILOG_COMMON)

@@ -24,7 +24,7 @@ import argparse
 import json
 import signal
 
-from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, run_tool
+from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, invoked_as, run_tool
 
 EPILOG = ("exit codes: 0 success (also for a complete run that is numerically invalid: its last lines say so); 1 "
           "simulation failure or interruption (partial results written, marked "
@@ -35,7 +35,7 @@ UNIT_ERRORS_SHOWN = 5
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="run.py", description="Run a co-simulation scenario and write a run folder.", epilog=EPILOG)
+        prog=invoked_as("run.py"), description="Run a co-simulation scenario and write a run folder.", epilog=EPILOG)
     parser.add_argument("scenario", type=Path, help="scenario YAML file or SSP package (.ssp)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key; UNIT.PARAM=VALUE sets a unit parameter "
@@ -91,7 +91,7 @@ def _run(argv: list[str] | None) -> int:
     warnings = sum(outcome.summary.get("unit_warnings", {}).values())
     if outcome.result.complete:
         print(f"run complete: {outcome.folder} ({warnings} unit warning{'s' if warnings != 1 else ''})")
-        print(*verdict_lines(outcome.summary), sep="\n")
+        print(*verdict_lines(outcome.summary), *peak_lines(outcome.summary), sep="\n")
         return EXIT_OK
     print(*verdict_lines(outcome.summary), sep="\n")
     print(f"run {outcome.result.status}: {outcome.result.error}", file=sys.stderr)
@@ -137,6 +137,24 @@ def verdict_lines(summary: dict) -> list[str]:
             parts.append(f"peak isolator force {physical['peak_isolator_force_N'] / 1e3:.4g} kN")
         lines.append("physical outcome: " + "; ".join(parts))
     return lines
+
+
+def peak_lines(summary: dict) -> list[str]:
+    """The run's key peaks from ``summary.json`` (its building's drift and absolute acceleration, the current),
+    each with the variable it was reached in; nothing for a system that has none of them."""
+    parts = []
+    for key, what, unit, scale in (("peak_drift_m", "storey drift", "mm", 1e3),
+                                   ("peak_abs_acceleration_m_s2", "absolute acceleration", "m/s²", 1.0)):
+        peaks = {k: v for k, v in (summary.get(key) or {}).items() if isinstance(v, (int, float))}
+        if peaks:
+            name, value = max(peaks.items(), key=lambda item: abs(item[1]))
+            g = f" = {abs(value) / 9.81:.3g} g" if unit == "m/s²" else ""
+            parts.append(f"{what} {scale * abs(value):.4g} {unit}{g} ({name})")
+    if isinstance(summary.get("peak_current_A"), (int, float)):
+        mean = summary.get("mean_current_A")
+        parts.append(f"current {summary['peak_current_A']:.3g} A"
+                     + (f" (mean {mean:.3g} A)" if isinstance(mean, (int, float)) else ""))
+    return ["peaks: " + "; ".join(parts)] if parts else []
 
 
 def results_note(folder: Path) -> str:

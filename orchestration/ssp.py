@@ -24,14 +24,15 @@ if __name__ == "__main__":
 
 import argparse
 
-from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, run_tool
+from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, invoked_as, run_tool
 
 EXIT_CODES = ("exit codes: 0 success; 2 scenario or package error, or the destination exists or cannot be written "
               "(nothing written); " + EPILOG_COMMON)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="ssp.py", description="Export a scenario to SSP 1.0, or check a package.",
+    parser = argparse.ArgumentParser(prog=invoked_as("ssp.py"),
+                                     description="Export a scenario to SSP 1.0, or check a package.",
                                      epilog=EXIT_CODES)
     sub = parser.add_subparsers(dest="command", required=True)
     exp = sub.add_parser("export", help="write a scenario as an .ssp package", epilog=EXIT_CODES)

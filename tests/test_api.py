@@ -90,6 +90,47 @@ def test_unit_messages_reach_logging_and_the_api_prints_nothing(tmp_path, capsys
     assert all((r.unit, r.fmi_status) == ("isolator", "warning") for r in shown)
 
 
+def test_warnings_beyond_those_shown_say_where_the_rest_are(tmp_path, monkeypatch):
+    import json
+    import logging
+
+    from orchestration.master import session
+
+    class Keep(logging.Handler):
+        def __init__(self) -> None:
+            super().__init__(logging.WARNING)
+            self.records: list[logging.LogRecord] = []
+
+        def emit(self, record: logging.LogRecord) -> None:
+            self.records.append(record)
+
+    monkeypatch.setattr(session, "WARNINGS_SHOWN", 1)
+    plan = load_scenario(PROJECT / "scenarios" / "elcentro.yaml", ["simulation.stop_time=2", "ground.scale=3"])
+    logger, keep = logging.getLogger("mre_cosim.units"), Keep()
+    logger.addHandler(keep)
+    try:
+        res = run(plan, out=tmp_path / "run")
+    finally:
+        logger.removeHandler(keep)
+    warned = [m for m in json.loads((res.folder / "manifest.json").read_text())["unit_messages"] if "] warning: " in m]
+    assert len(warned) >= 2  # more than the one shown
+    shown = [r.getMessage() for r in keep.records]
+    assert shown[0] == warned[0] and len(shown) == 2
+    assert "the rest are not shown here" in shown[1] and "manifest.json" in shown[1]
+
+
+def test_a_passive_current_beyond_the_limit_is_said_with_the_current_held(tmp_path):
+    plan = load_scenario(PROJECT / "scenarios" / "kobe.yaml", ["simulation.stop_time=0.01", "controller.mode=passive",
+                                                                "controller.i_passive=5"])
+    res = run(plan, out=tmp_path / "run")
+    assert res.complete and res.summary["peak_current_A"] == 3.0  # clipped to i_max
+    import json
+
+    messages = json.loads((res.folder / "manifest.json").read_text())["unit_messages"]
+    warned = [m for m in messages if "i_passive" in m]
+    assert warned == ["[controller] warning: i_passive = 5 A is outside [0, i_max = 3 A]: the current is held at 3 A"]
+
+
 def test_the_command_line_prints_the_unit_warnings(tmp_path, capsys):
     import json
 

@@ -94,3 +94,31 @@ def test_dispatch_calls_the_tools_own_main(tool, monkeypatch):
     monkeypatch.setattr(module, "main", lambda argv: calls.append(argv) or 17)
     assert console.main([tool, "x.yaml", "--set", "a=1"]) == 17
     assert calls == [["x.yaml", "--set", "a=1"]]
+
+
+@pytest.mark.parametrize("tool", [t for t in TOOLS if t != "build"])
+def test_a_tools_usage_names_the_command_the_user_typed(tool, capsys):
+    with pytest.raises(SystemExit) as done:
+        console.main([tool, "--help"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: mre-cosim {tool} ")
+    script = f"{tool}.py"
+    module = importlib.import_module(console.TOOLS[tool][0])
+    with pytest.raises(SystemExit):
+        module.main(["--help"])  # the script itself, afterwards: its own name again
+    assert capsys.readouterr().out.startswith(f"usage: {script} ")
+
+
+def test_a_reader_that_leaves_early_is_no_internal_error(tmp_path):
+    """``mre-cosim study --help | head -1``: the pipe breaks under the tool; no crash report, no traceback."""
+    import os
+
+    read, write = os.pipe()
+    os.close(read)  # the reader has gone before the tool prints
+    try:
+        done = subprocess.run([*console_command(), "study", "--help"], cwd=tmp_path, stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write)
+    assert done.returncode in (0, 1), done.stderr
+    assert "internal error" not in done.stderr and "Traceback" not in done.stderr, done.stderr

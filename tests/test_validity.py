@@ -287,3 +287,14 @@ def test_a_verdict_closer_than_the_step_s_change_is_a_tie():
     (text,) = verdicts([best, lyap], "best-constant", ["hachinohe"])
     assert "beats the best constant current on 0 of 1 records" in text and "ties (within 1 %, or the step's change, " \
                                                                           "up to 3.5 %) on 1" in text
+
+
+def test_a_run_prints_its_key_peaks_with_where_they_were_reached():
+    from orchestration.run import peak_lines
+
+    summary = {"peak_drift_m": {"building.drift_1": 0.0113, "building.drift_2": -0.0151},
+               "peak_abs_acceleration_m_s2": {"building.a_0": 9.81, "building.a_3": 4.0},
+               "peak_current_A": 3.0, "mean_current_A": 2.5}
+    assert peak_lines(summary) == ["peaks: storey drift 15.1 mm (building.drift_2); absolute acceleration "
+                                   "9.81 m/s² = 1 g (building.a_0); current 3 A (mean 2.5 A)"]
+    assert peak_lines({"peak_current_A": None}) == []  # a system without a building or a current says nothing

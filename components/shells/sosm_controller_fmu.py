@@ -121,6 +121,9 @@ class SosmCurrentController(Fmi2Slave):
                 self._failed = f"invalid controller parameters: {exc}"
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
+        elif self.mode == "passive" and not 0.0 <= self.i_passive <= self.i_max:
+            self.log(f"i_passive = {self.i_passive:g} A is outside [0, i_max = {self.i_max:g} A]: the current is held "
+                     f"at {self._current():g} A", Fmi2Status.warning)
 
     def set_real(self, vrs, values):
         if vrs == self._xva:

@@ -31,6 +31,8 @@ UNCONTROLLED = "passive-off"
 SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
 
 
+REPLACED_KEYS = frozenset({"records"})  # a study that extends another and names records runs those only
+
 MAX_SWEEP_POINTS = 10_001
 """Most constant currents a sweep may try (each is a co-simulation per record)."""
 MAX_TUNING_EVALS = 100_000
@@ -284,7 +286,7 @@ def key_files(study_file: Path) -> dict:
     """Which file of an ``extends`` chain wrote each key of a study file (relative paths are relative to it), as
     it reads now; empty if it cannot be read (the paths are then relative to the study file). For ``--resume``."""
     try:
-        return load_tree(study_file)[1]
+        return load_tree(study_file, replace=REPLACED_KEYS)[1]
     except (ScenarioError, OSError, ValueError):
         return {}
 
@@ -317,7 +319,7 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
     path = Path(path).resolve()
     if not path.is_file():
         raise ScenarioError(f"study file {path} does not exist")
-    data, lines = load_tree(path)
+    data, lines = load_tree(path, replace=REPLACED_KEYS)
     apply_overrides(data, lines, overrides)
     try:
         spec = StudySpec.model_validate(data)

@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mre_common.guard import invoked_as
 from orchestration.batch.jobs import write_run_files
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import PortablePlan, file_bytes
@@ -62,7 +63,8 @@ from orchestration.provenance import provenance
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """Command-line arguments."""
-    parser = argparse.ArgumentParser(prog="study.py", description="Run a case study (records x strategies).")
+    parser = argparse.ArgumentParser(prog=invoked_as("study.py"),
+                                     description="Run a case study (records x strategies).")
     parser.add_argument("study", type=Path, nargs="?", help="study YAML file (scenarios/case_study.yaml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a study key, e.g. --set 'overrides=[simulation.stop_time=5]' or "

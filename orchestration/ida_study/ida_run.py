@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mre_common.guard import invoked_as
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import file_bytes, job_key, plan_content
 from orchestration.batch.store import ResultStore, StoreError, check_folder, open_for_resume
@@ -178,7 +179,8 @@ def run_ida(prepared: PreparedIda, folder: Path, pool: BatchPool, progress: bool
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     """Command-line arguments."""
-    parser = argparse.ArgumentParser(prog="ida.py", description="Incremental dynamic analysis and fragility.")
+    parser = argparse.ArgumentParser(prog=invoked_as("ida.py"),
+                                     description="Incremental dynamic analysis and fragility.")
     parser.add_argument("study", type=Path, nargs="?", help="IDA study YAML file (scenarios/ida.yaml)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a study key (VALUE as YAML), e.g. --set 'intensity.levels=[0.1, 0.2]'")

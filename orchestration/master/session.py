@@ -172,6 +172,10 @@ def run_plan(
             else:
                 level = logging.ERROR
             _UNIT_LOG.log(level, "%s", text, extra={"unit": unit, "fmi_status": record.status})
+            if record.status == "warning" and warnings[unit] == WARNINGS_SHOWN + 1:
+                _UNIT_LOG.warning("[%s] more warnings than %d: the rest are not shown here; every one is in the run "
+                                  "folder's manifest.json (unit_messages)", unit, WARNINGS_SHOWN,
+                                  extra={"unit": unit, "fmi_status": "warning"})
 
     def tick(k: int) -> None:
         if bar is not None:

@@ -250,8 +250,12 @@ def merge(base: Any, override: Any) -> Any:
     return override
 
 
-def load_tree(path: Path, _seen: tuple[Path, ...] = ()) -> tuple[dict[str, Any], Lines]:
-    """Read a scenario file and the chain of files it ``extends``, merged; with key lines."""
+def load_tree(path: Path, _seen: tuple[Path, ...] = (), replace: frozenset[str] = frozenset()
+              ) -> tuple[dict[str, Any], Lines]:
+    """Read a scenario file and the chain of files it ``extends``, merged; with key lines.
+
+    A top-level key in ``replace`` that a file sets replaces what the files it extends set, whole, instead of
+    merging with it (a study's ``records``: the records a study names are its records)."""
     path = resolved(path)
     if path in _seen:
         chain = " -> ".join(str(p) for p in (*_seen, path))
@@ -278,7 +282,11 @@ def load_tree(path: Path, _seen: tuple[Path, ...] = ()) -> tuple[dict[str, Any],
     if not isinstance(parent, str):
         file, line = lines[("extends",)]
         raise ScenarioError(Problem("must be the path of another scenario file", "extends", file, line))
-    base, base_lines = load_tree(path.parent / parent, (*_seen, path))
+    base, base_lines = load_tree(path.parent / parent, (*_seen, path), replace)
+    replaced = {key for key in replace if key in data}
+    if replaced:
+        base = {k: v for k, v in base.items() if k not in replaced}
+        base_lines = {k: v for k, v in base_lines.items() if not (k and k[0] in replaced)}
     return merge(base, data), {**base_lines, **lines}
 
 
