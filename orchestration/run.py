@@ -92,6 +92,10 @@ def _run(argv: list[str] | None) -> int:
     if outcome.result.complete:
         print(f"run complete: {outcome.folder} ({warnings} unit warning{'s' if warnings != 1 else ''})")
         print(*verdict_lines(outcome.summary), *peak_lines(outcome.summary), sep="\n")
+        note = outcome.summary.get("executor_note")
+        if note and outcome.summary.get("executor") != "native":  # e.g. no C compiler: slower, not wrong
+            print(f"note: the master's C loop was not used ({note}); the Python executor ran it, with the same "
+                  "results, more slowly (docs/performance.md)", file=sys.stderr)
         return EXIT_OK
     print(*verdict_lines(outcome.summary), sep="\n")
     print(f"run {outcome.result.status}: {outcome.result.error}", file=sys.stderr)

@@ -142,3 +142,17 @@ def test_the_command_line_prints_the_unit_warnings(tmp_path, capsys):
     manifest = json.loads((tmp_path / "run" / "manifest.json").read_text())
     warned = [m for m in manifest["unit_messages"] if "] warning: " in m]
     assert warned and capsys.readouterr().err.splitlines() == warned
+
+
+def test_a_run_without_a_c_compiler_says_it_ran_the_slower_way(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "CC": str(tmp_path / "no-such-compiler"), "MRE_COSIM_CACHE": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, str(PROJECT / "orchestration" / "run.py"), str(PROJECT / "scenarios" /
+                           "kobe.yaml"), "--set", "simulation.stop_time=0.05", "--out", str(tmp_path / "run"),
+                           "--quiet", "--no-plots"], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "the master's C loop was not used" in done.stderr and "no-such-compiler" in done.stderr, done.stderr
+    assert "peaks: storey drift" in done.stdout

@@ -20,8 +20,10 @@ def test_first_hour_notebook_runs(tmp_path, monkeypatch):
     out = tmp_path / "out"
     monkeypatch.setenv("MRE_COSIM_NOTEBOOK_OUT", str(out))  # the kernel inherits the environment
     nb = nbformat.read(NOTEBOOK, as_version=4)
+    elsewhere = tmp_path / "elsewhere"  # a kernel started outside the project: it finds the project all the same
+    elsewhere.mkdir()
     nbclient.NotebookClient(nb, timeout=900, kernel_name="python3",
-                            resources={"metadata": {"path": str(NOTEBOOK.parent)}}).execute()
+                            resources={"metadata": {"path": str(elsewhere)}}).execute()
 
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.output_type == "error"]
     assert not errors
