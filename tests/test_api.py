@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import csv
+import json
+import logging
 import re
 
 import numpy as np
@@ -11,6 +13,24 @@ import pytest
 from orchestration.api import Results, ScenarioError, load_scenario, run
 
 from .conftest import PROJECT
+
+EL_CENTRO_X3 = (PROJECT / "scenarios" / "elcentro.yaml", ["simulation.stop_time=2", "ground.scale=3"])
+
+
+def run_keeping_unit_records(tmp_path, level: int) -> tuple[Results, list[logging.LogRecord]]:
+    """El Centro x3 for 2 s through the API, with the records the ``mre_cosim.units`` logger gets at ``level``."""
+    records: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    logger, keep = logging.getLogger("mre_cosim.units"), Keep(level)
+    logger.addHandler(keep)
+    try:
+        return run(load_scenario(*EL_CENTRO_X3), out=tmp_path / "run"), records
+    finally:
+        logger.removeHandler(keep)
 
 
 def docs_example() -> str:
@@ -61,60 +81,26 @@ def test_unit_messages_reach_logging_and_the_api_prints_nothing(tmp_path, capsys
     # El Centro ×3 drives the base beyond the isolator's identified ±8 mm within 2 s: the
     # isolator warns. Through the API nothing is printed; each warning reaches a handler of
     # the "mre_cosim.units" logger, the same messages the run folder's manifest keeps.
-    import json
-    import logging
-
-    class Keep(logging.Handler):
-        def __init__(self) -> None:
-            super().__init__(logging.DEBUG)
-            self.records: list[logging.LogRecord] = []
-
-        def emit(self, record: logging.LogRecord) -> None:
-            self.records.append(record)
-
-    plan = load_scenario(PROJECT / "scenarios" / "elcentro.yaml", ["simulation.stop_time=2", "ground.scale=3"])
-    logger, keep = logging.getLogger("mre_cosim.units"), Keep()
-    logger.addHandler(keep)
-    try:
-        res = run(plan, out=tmp_path / "run")
-    finally:
-        logger.removeHandler(keep)
+    res, records = run_keeping_unit_records(tmp_path, logging.DEBUG)
     assert res.complete
     captured = capsys.readouterr()
     assert captured.err == "" and captured.out == ""
     manifest = json.loads((res.folder / "manifest.json").read_text())
     warned = [m for m in manifest["unit_messages"] if "] warning: " in m]
     assert len(warned) == res.summary["unit_warnings"]["isolator"] > 0
-    shown = [r for r in keep.records if r.levelno == logging.WARNING]
+    shown = [r for r in records if r.levelno == logging.WARNING]
     assert [r.getMessage() for r in shown] == warned
     assert all((r.unit, r.fmi_status) == ("isolator", "warning") for r in shown)
 
 
 def test_warnings_beyond_those_shown_say_where_the_rest_are(tmp_path, monkeypatch):
-    import json
-    import logging
-
     from orchestration.master import session
 
-    class Keep(logging.Handler):
-        def __init__(self) -> None:
-            super().__init__(logging.WARNING)
-            self.records: list[logging.LogRecord] = []
-
-        def emit(self, record: logging.LogRecord) -> None:
-            self.records.append(record)
-
     monkeypatch.setattr(session, "WARNINGS_SHOWN", 1)
-    plan = load_scenario(PROJECT / "scenarios" / "elcentro.yaml", ["simulation.stop_time=2", "ground.scale=3"])
-    logger, keep = logging.getLogger("mre_cosim.units"), Keep()
-    logger.addHandler(keep)
-    try:
-        res = run(plan, out=tmp_path / "run")
-    finally:
-        logger.removeHandler(keep)
+    res, records = run_keeping_unit_records(tmp_path, logging.WARNING)
     warned = [m for m in json.loads((res.folder / "manifest.json").read_text())["unit_messages"] if "] warning: " in m]
     assert len(warned) >= 2  # more than the one shown
-    shown = [r.getMessage() for r in keep.records]
+    shown = [r.getMessage() for r in records]
     assert shown[0] == warned[0] and len(shown) == 2
     assert "the rest are not shown here" in shown[1] and "manifest.json" in shown[1]
 
@@ -124,16 +110,12 @@ def test_a_passive_current_beyond_the_limit_is_said_with_the_current_held(tmp_pa
                                                                 "controller.i_passive=5"])
     res = run(plan, out=tmp_path / "run")
     assert res.complete and res.summary["peak_current_A"] == 3.0  # clipped to i_max
-    import json
-
     messages = json.loads((res.folder / "manifest.json").read_text())["unit_messages"]
     warned = [m for m in messages if "i_passive" in m]
     assert warned == ["[controller] warning: i_passive = 5 A is outside [0, i_max = 3 A]: the current is held at 3 A"]
 
 
 def test_the_command_line_prints_the_unit_warnings(tmp_path, capsys):
-    import json
-
     from orchestration import run as run_tool
 
     argv = [str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", "simulation.stop_time=2", "--set",
