@@ -14,7 +14,7 @@ import pytest
 from orchestration import console
 
 PROJECT = Path(__file__).resolve().parent.parent
-TOOLS = ("run", "study", "ida", "identify", "tune", "ssp", "build")
+TOOLS = ("run", "study", "ida", "identify", "tune", "inspect", "ssp", "build")
 
 
 def console_command() -> list[str]:
@@ -102,8 +102,8 @@ def test_a_tools_usage_names_the_command_the_user_typed(tool, capsys):
         console.main([tool, "--help"])
     assert done.value.code == 0
     assert capsys.readouterr().out.startswith(f"usage: mre-cosim {tool} ")
-    script = f"{tool}.py"
     module = importlib.import_module(console.TOOLS[tool][0])
+    script = f"{module.__name__.rpartition('.')[2]}.py"  # inspect: inspect_fmu.py (no stdlib name shadowed)
     with pytest.raises(SystemExit):
         module.main(["--help"])  # the script itself, afterwards: its own name again
     assert capsys.readouterr().out.startswith(f"usage: {script} ")

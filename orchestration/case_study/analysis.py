@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -39,8 +40,23 @@ INDEX_MEANING = {
 }
 
 
+CURRENT = "controller.i"
+"""The studies' name for a run's current command [A]: the report's ``current`` role. A controller whose output has
+another name (a strategy entry's ``current: u``) is read under this name too (:func:`read_timeseries`)."""
+
+
+def _current_role(folder: Path) -> str | None:
+    """The variable the run's report named its current command (its ``manifest.json``), if it has one."""
+    try:
+        role = json.loads((folder / "manifest.json").read_text())["scenario"]["report"]["current"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return role if isinstance(role, str) else None
+
+
 def read_timeseries(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a run's timeseries.csv by name (``time`` first)."""
+    """Columns of a run's timeseries.csv by name (``time`` first); the current command also as :data:`CURRENT`
+    when the run's controller calls it otherwise."""
     with open(path) as f:
         header = next(csv.reader(f))
     if not header:
@@ -48,7 +64,11 @@ def read_timeseries(path: Path) -> dict[str, np.ndarray]:
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     if data.shape[0] == 0:
         data = np.zeros((0, len(header)))
-    return {name: data[:, k] for k, name in enumerate(header)}
+    columns = {name: data[:, k] for k, name in enumerate(header)}
+    role = _current_role(Path(path).parent)
+    if CURRENT not in columns and role in columns:
+        columns[CURRENT] = columns[role]
+    return columns
 
 
 def _peak(x: np.ndarray) -> float:

@@ -16,7 +16,7 @@ from orchestration.case_study import case_jobs
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy
 from orchestration.case_study.case_records import PreparedStudy, RecordInfo
 from orchestration.case_study.robustness_plan import check_variants
-from orchestration.case_study.strategies import check_strategy
+from orchestration.case_study.strategies import COMMAND, check_strategy
 from orchestration.case_study.tuning import monolithic_problem, read_gains, run_overrides, system_setup
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError
@@ -54,7 +54,8 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
         try:
             if strategy.entry.fmu is not None or strategy.entry.connections is not None:
                 check_strategy(strategy, path, base, spec.i_max, g, 0.0)  # problems at the strategy entry's lines
-            plans[s] = plan_scenario(path, (*base, *run_strategy_overrides(study, s, path, spec.i_max, g, 0.0)))
+            plans[s] = plan_scenario(path, (*strategy.common(base),
+                                            *run_strategy_overrides(study, s, path, spec.i_max, g, 0.0)))
         except ScenarioError as exc:
             problems += [p for p in exc.problems if p not in problems]
     if problems:
@@ -90,11 +91,12 @@ def prepare(study: LoadedStudy) -> PreparedStudy:
 
 def run_strategy_overrides(study: LoadedStudy, strategy: str, scenario: Path, i_max: float,
                            gains: dict[str, float] | None, best: float | None) -> tuple[str, ...]:
-    """The overrides of one record x strategy run: the controller unit, then its connections if the entry has any."""
+    """The overrides of one record x strategy run after the study's (``strategy.common(base)``): the controller
+    unit, then its wiring (connections, the report's current) if the entry changes it."""
     s = study.strategy(strategy)
-    conns = () if s.entry.connections is None else s.connection_override(
-        list(load_tree(scenario)[0].get("connections") or []))
-    return (*s.overrides(i_max, gains, best), *conns)
+    rewired = s.entry.connections is not None or s.entry.current != COMMAND
+    wiring = s.wiring_overrides(list(load_tree(scenario)[0].get("connections") or [])) if rewired else ()
+    return (*s.overrides(i_max, gains, best), *wiring)
 
 
 def plan_job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]

@@ -283,7 +283,8 @@ def plan_runs(study: LoadedStudy, runner: JobRunner) -> tuple[list[PlannedJob], 
             entry.current_A = strategy.constant_current(spec.i_max, best)
             entry.overrides = list(extra)
             outputs = OUTPUTS_OVERRIDE if spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
-            runs.append(plan_job(study, entry.key, "cosim", (*base, *extra, outputs), {}))
+            overrides = (*strategy.common(base), *extra, strategy.recorded(outputs))
+            runs.append(plan_job(study, entry.key, "cosim", overrides, {}))
         if spec.reference.enabled:
             for s in ("passive-off", "passive-on"):
                 if s in spec.strategies:
@@ -318,7 +319,8 @@ def plan_variant_runs(study: LoadedStudy, runner: JobRunner) -> list[PlannedJob]
                 extra = (*extra, *planner.overrides(r, v, extra))
                 entry.current_A = strategy.constant_current(spec.i_max, best)
                 entry.overrides = list(extra)
-                jobs.append(plan_job(study, entry.key, "cosim", (*base, *extra, BENCHMARK_OUTPUTS_OVERRIDE), {}))
+                jobs.append(plan_job(study, entry.key, "cosim", (*strategy.common(base), *extra,
+                                                                 strategy.recorded(BENCHMARK_OUTPUTS_OVERRIDE)), {}))
     return jobs
 
 
@@ -335,9 +337,11 @@ def plan_half_step_runs(study: LoadedStudy, runner: JobRunner, runs: list[Planne
                         current_A=entry.current_A, overrides=[*(entry.overrides or []), *extra])
         record.half_step_runs.append(half)
         outputs = OUTPUTS_OVERRIDE if study.spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
+        strategy = study.strategy(entry.strategy)
         try:
-            jobs.append(plan_job(study, half.key, "cosim", (*run_overrides(study.spec), *(entry.overrides or []),
-                                                           outputs, *extra), {}))
+            jobs.append(plan_job(study, half.key, "cosim", (*strategy.common(run_overrides(study.spec)),
+                                                           *(entry.overrides or []), strategy.recorded(outputs),
+                                                           *extra), {}))
         except ScenarioError as exc:  # e.g. a controller that cannot step at its own rate: this check only fails
             half.error = f"the half-step run cannot be made: {exc}"
             runner.done(JobResult(half.key, False, error=half.error, status="failed"), stored=True)

@@ -30,7 +30,7 @@ from typing import Any
 from mre_common.fs_limits import path_problem
 from orchestration.case_study.case_config import LoadedStudy
 from orchestration.case_study.robustness_config import PlantUnit, VariantSpec
-from orchestration.case_study.strategies import CONTROLLER
+from orchestration.case_study.strategies import COMMAND, CONTROLLER
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import Problem, ScenarioError
@@ -210,7 +210,7 @@ class VariantPlanner:
         if spec.sensors is not None:
             conns = self._sensors(record, name, conns, plan, out, problems)
         if spec.current_lag:
-            conns = self._lag(record, name, conns, out, problems)
+            conns = self._lag(record, name, conns, out, problems, _command(strategy_overrides))
         if problems:
             raise ScenarioError(problems)
         if spec.sensors is not None or spec.current_lag:
@@ -274,11 +274,10 @@ class VariantPlanner:
                 new.append(into)
         return new
 
-    def _lag(self, record: str, name: str, conns: list[dict[str, Any]], out: list[str], problems: list[Problem]
-             ) -> list[dict[str, Any]]:
+    def _lag(self, record: str, name: str, conns: list[dict[str, Any]], out: list[str], problems: list[Problem],
+             command: str) -> list[dict[str, Any]]:
         study, tau = self.study, variants(self.study)[name].current_lag
         out += [f"units.{LAG}.fmu={unit_fmu(study, 'lag_fmu')}", f"units.{LAG}.parameters.tau={float(tau)!r}"]
-        command = f"{CONTROLLER}.i"
         new = [c for c in conns if str(c["source"]).strip() != command]
         targets = [c for c in conns if str(c["source"]).strip() == command]
         if not targets:
@@ -288,6 +287,14 @@ class VariantPlanner:
         for c in targets:
             new.append({**c, "source": f"{LAG}.i"})
         return new
+
+
+def _command(strategy_overrides: tuple[str, ...]) -> str:
+    """The controller's current-command output in a run: the strategy's ``report.current=`` if any, else ours."""
+    for o in reversed(strategy_overrides):
+        if o.startswith("report.current="):
+            return o.partition("=")[2].strip()
+    return f"{CONTROLLER}.{COMMAND}"
 
 
 def check_variants(study: LoadedStudy, base: tuple[str, ...], sets: dict[str, dict[str, Any]],
@@ -314,7 +321,7 @@ def check_variants(study: LoadedStudy, base: tuple[str, ...], sets: dict[str, di
                 g = sets[strategy.entry.gains]["gains"] if strategy.entry.gains in sets else None
                 try:
                     extra = run_strategy_overrides(study, s, path, spec.i_max, g, 0.0)
-                    plan_scenario(path, (*base, *extra, *planner.overrides(r, name, extra)))
+                    plan_scenario(path, (*strategy.common(base), *extra, *planner.overrides(r, name, extra)))
                 except ScenarioError as exc:
                     new = [p if p.message.startswith("robustness variant") else
                            Problem(f"robustness variant {name!r}, {r}, strategy {s!r}: {p.message}", p.key, p.file,

@@ -26,6 +26,7 @@ record scenario with the strategy applied.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -40,10 +41,14 @@ from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import resolve_scenario
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validate_scenario, validation_problems
+from orchestration.master.unit_check import warn_once
 from orchestration.master.yaml_source import Lines, apply_override, dotted, load_tree
+from orchestration.roles import check_variable, read_unit
 
 SHIPPED = PROJECT / "scenarios" / "strategies.yaml"
 CONTROLLER = "controller"  # the unit a strategy replaces
+COMMAND, LIMIT = "i", "i_max"  # our controllers' names for the current command and its limit (orchestration.roles)
+LIMIT_OVERRIDE = f"{CONTROLLER}.{LIMIT}="  # the studies' override of the controller's current limit
 I_MAX, BEST = "${i_max}", "${best_current}"  # placeholders in parameter values
 
 
@@ -58,6 +63,8 @@ class StrategyEntry(BaseModel):
     gains: Literal["sosm", "sosm-fig15"] | None = None  # the study's gain set: lambda, rho, zeta, theta, s_release
     gains_limit: bool = False  # the gain set's i_max limits the controller
     connections: list[Any] | None = None  # replace the scenario's connections into the controller
+    current: str = COMMAND  # the controller output that is its current command [A] (the role's ``i``)
+    limit: str | None = None  # the parameter the study's current limit sets [A]; None: i_max where the FMU has it
 
 
 class StrategyFile(BaseModel):
@@ -106,6 +113,42 @@ class Strategy:
         file = Path(self.where("fmu")[0])
         return p if p.is_absolute() else (file.parent / p).resolve()
 
+    @property
+    def current_ref(self) -> str:
+        """The controller output the runs connect, record and report as the current command."""
+        return f"{CONTROLLER}.{self.entry.current}"
+
+    def limit_parameter(self) -> str | None:
+        """The controller parameter the study's current limit sets, or None: the FMU has none (it keeps its own).
+
+        ``limit:`` if the entry names one; else ``i_max`` for the record scenario's own controller and for an FMU
+        that has it (an FMU that cannot be read is taken to have it: the engine's checks report it).
+        """
+        if self.entry.limit is not None:
+            return self.entry.limit
+        if self.fmu_path is None:
+            return LIMIT
+        variables = fmu_variables(self.fmu_path)
+        return LIMIT if variables is None or LIMIT in variables else None
+
+    def common(self, base: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+        """The study's overrides of every run (``base``), its current limit set on this controller's own limit
+        parameter (:meth:`limit_parameter`), or left out for a controller without one."""
+        limit = self.limit_parameter()
+        out = []
+        for o in base:
+            if o.startswith(LIMIT_OVERRIDE):
+                if limit is None:
+                    continue
+                o = f"{CONTROLLER}.{limit}={o[len(LIMIT_OVERRIDE):]}"
+            out.append(o)
+        return tuple(out)
+
+    def recorded(self, outputs_override: str) -> str:
+        """An ``outputs=[...]`` override with our current command replaced by this controller's."""
+        return outputs_override.replace(f"{CONTROLLER}.{COMMAND},", f"{self.current_ref},").replace(
+            f"{CONTROLLER}.{COMMAND}]", f"{self.current_ref}]")
+
     def values(self, i_max: float, best: float | None) -> dict[str, Any]:
         """The controller's parameters with the placeholders filled in."""
         return {k: i_max if v == I_MAX else best if v == BEST else v for k, v in self.entry.parameters.items()}
@@ -126,22 +169,26 @@ class Strategy:
                 raise ScenarioError(self.problem(f"no gains for the gain set {self.entry.gains!r}", "gains"))
             out += [f"{CONTROLLER}.{k}={gains[k]!r}" for k in ("lambda", "rho", "zeta", "theta")]
             if self.entry.gains_limit:
-                out.append(f"{CONTROLLER}.i_max={float(gains['i_max'])!r}")
+                out.append(f"{CONTROLLER}.{self.limit_parameter() or LIMIT}={float(gains['i_max'])!r}")
             if "s_release" in gains:
                 out.append(f"{CONTROLLER}.s_release={float(gains['s_release'])!r}")
         return tuple(out)
 
     def connections(self, scenario_connections: list[Any]) -> list[Any] | None:
-        """The run's connections: the scenario's, those into the controller replaced by the entry's (None: kept)."""
-        if self.entry.connections is None:
+        """The run's connections (None: the scenario's, unchanged): those into the controller replaced by the
+        entry's, and the scenario's connections from ``controller.i`` made from the entry's ``current``."""
+        if self.entry.connections is None and self.entry.current == COMMAND:
             return None
-        kept = [c for c in scenario_connections if _target_unit(c) != CONTROLLER]
-        return [*kept, *self.entry.connections]
+        conns = list(scenario_connections) if self.entry.connections is None else [
+            *(c for c in scenario_connections if _target_unit(c) != CONTROLLER), *self.entry.connections]
+        return [_from_source(c, f"{CONTROLLER}.{COMMAND}", self.current_ref) for c in conns]
 
-    def connection_override(self, scenario_connections: list[Any]) -> tuple[str, ...]:
-        """``connections=[...]`` if the entry has connections, else nothing."""
+    def wiring_overrides(self, scenario_connections: list[Any]) -> tuple[str, ...]:
+        """``connections=[...]`` if the run's connections differ from the scenario's, and the report's current
+        role on the entry's ``current`` if it is not ours."""
         conns = self.connections(scenario_connections)
-        return () if conns is None else (f"connections={json.dumps(conns)}",)
+        out = () if conns is None else (f"connections={json.dumps(conns)}",)
+        return out if self.entry.current == COMMAND else (*out, f"report.current={self.current_ref}")
 
 
 def _yaml_value(v: Any) -> str:
@@ -151,6 +198,34 @@ def _yaml_value(v: Any) -> str:
     if isinstance(v, str) and yaml.safe_load(v) == v:
         return v
     return json.dumps(v)
+
+
+def _from_source(connection: Any, old: str, new: str) -> Any:
+    """A connection with source ``old`` made from ``new`` (``a.x -> b.y`` or ``{source, target, ...}``)."""
+    if old == new:
+        return connection
+    if isinstance(connection, dict):
+        return {**connection, "source": new} if str(connection.get("source", "")).strip() == old else connection
+    if isinstance(connection, str):
+        source, arrow, target = connection.partition("->")
+        return f"{new} ->{target}" if arrow and source.strip() == old else connection
+    return connection
+
+
+@functools.lru_cache(maxsize=64)
+def _variables(path: str, mtime_ns: int) -> frozenset[str] | None:
+    try:
+        return frozenset(read_unit(Path(path), CONTROLLER).variables)
+    except Exception:  # unreadable: the engine's checks say why, at the entry's fmu key
+        return None
+
+
+def fmu_variables(path: Path) -> frozenset[str] | None:
+    """The variable names of the FMU at ``path`` (None: no FMU there, or unreadable); cached by file and time."""
+    try:
+        return _variables(str(path), path.stat().st_mtime_ns)
+    except OSError:
+        return None
 
 
 def _target_unit(connection: Any) -> str | None:
@@ -248,7 +323,7 @@ def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_
     data.setdefault("name", scenario.stem)
     units = data.get("units")
     names = set(units) if isinstance(units, dict) else set()
-    for assignment in base:
+    for assignment in strategy.common(base):
         apply_override(data, lines, assignment, names)
     here: dict[tuple[Any, ...], tuple[Any, ...]] = {}  # scenario key -> the strategy entry's key
     unit = data.setdefault("units", {}).setdefault(CONTROLLER, {})
@@ -265,7 +340,7 @@ def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_
         here[("units", CONTROLLER, "parameters", name)] = ("parameters", name) if name in strategy.entry.parameters \
             else ("gains",)
     conns = strategy.connections(list(data.get("connections") or []))
-    if conns is not None:
+    if conns is not None and strategy.entry.connections is not None:
         old = list(data.get("connections") or [])
         kept = [k for k, c in enumerate(old) if _target_unit(c) != CONTROLLER]
         moved = {("connections", new): lines.get(("connections", k)) for new, k in enumerate(kept)}
@@ -274,15 +349,47 @@ def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_
         lines.update({k: v for k, v in moved.items() if v is not None})
         for j in range(len(strategy.entry.connections or [])):
             here[("connections", len(kept) + j)] = ("connections", j)
+    if conns is not None:
         data["connections"] = conns
+    if strategy.entry.current != COMMAND:
+        data.setdefault("report", {})["current"] = strategy.current_ref
+        here[("report", "current")] = ("current",)
     for scen_key, own in here.items():
         lines[scen_key] = strategy.where(*own)
         for sub in ("source", "target"):
             lines[(*scen_key, sub)] = strategy.where(*own, sub)
+    role, missing = role_problems(strategy)
     try:
         resolve_scenario(validate_scenario(data, lines, scenario, REPORT.model))
-    except ScenarioError as exc:
-        raise ScenarioError([_relocated(p, here, strategy) for p in exc.problems]) from None
+    except ScenarioError as exc:  # the engine's own problems, but not again for a role variable already reported
+        raise ScenarioError([*role, *(_relocated(p, here, strategy) for p in exc.problems
+                                      if not any(f"{name!r}" in p.message or f"{CONTROLLER}.{name}" in p.message
+                                                 for name in missing))]) from None
+    if role:
+        raise ScenarioError(role)
+
+
+def role_problems(strategy: Strategy) -> tuple[list[Problem], set[str]]:
+    """The controller role's problems of a strategy with its own FMU, at the entry's ``current`` and ``limit``
+    keys, and the names they concern: the current command must be an output and the limit a parameter, both in A
+    (a variable without a unit is taken as A, with a warning naming both ends). Nothing when the FMU cannot be read
+    (the engine says why)."""
+    path = strategy.fmu_path
+    if path is None or fmu_variables(path) is None:
+        return [], set()
+    unit = read_unit(path, CONTROLLER)
+    checks = [("current", strategy.entry.current, "output", "the current command")]
+    if strategy.entry.limit is not None:
+        checks.append(("limit", strategy.entry.limit, "parameter", "the current limit"))
+    problems, names = [], set()
+    for key, name, causality, what in checks:
+        problem, warning = check_variable(unit, name, causality, "A", f"{what} of strategy {strategy.name!r}")
+        if problem:
+            problems.append(strategy.problem(problem, key))
+            names.add(name)
+        if warning and key == "limit":  # the current's own is the engine's, on its connection to the device
+            warn_once(warning)
+    return problems, names
 
 
 def _relocated(problem: Problem, here: dict[tuple[Any, ...], tuple[Any, ...]], strategy: Strategy) -> Problem:

@@ -19,7 +19,7 @@ from typing import Any
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
 from orchestration.case_study.case_jobs import RECORDED
-from orchestration.case_study.strategies import CONTROLLER, check_strategy
+from orchestration.case_study.strategies import Strategy, check_strategy
 from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
 from orchestration.engine_hooks import plan_scenario
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
@@ -34,7 +34,6 @@ from orchestration.ida_study.suites import (
     windowed,
 )
 from orchestration.master.errors import Problem, ScenarioError
-from orchestration.master.fmu_description import read_description
 from orchestration.master.scenario import load_scenario
 from orchestration.master.yaml_source import load_tree
 
@@ -153,29 +152,18 @@ def _gain_sets(loaded: LoadedIda, used: set[str | None], problems: list[Problem]
     return docs
 
 
-LIMIT = "controller.i_max="  # the study's override of the controller's current limit (its common overrides)
-
-
-def _has_current_limit(fmu: Path) -> bool:
-    """Whether a controller FMU has an ``i_max`` parameter (True if it cannot be read: the checks say why)."""
-    try:
-        description, _ = read_description(fmu, CONTROLLER)
-    except Exception:  # any unreadable FMU is reported by the engine's checks
-        return True
-    return "i_max" in description.variables
-
-
-def run_commons(common: tuple[str, ...], strategies: dict[str, tuple[str, ...]], unlimited: set[str]
+def run_commons(common: tuple[str, ...], strategies: dict[str, tuple[str, ...]], named: dict[str, Strategy]
                 ) -> dict[str, tuple[str, ...]]:
-    """Strategy -> the overrides every run of it gets first: ``common``, without ``controller.i_max`` for a
-    controller FMU that has no such parameter (a user's own: its current limit is its own business)."""
-    return {s: tuple(o for o in common if not (s in unlimited and o.startswith(LIMIT))) for s in strategies}
+    """Strategy -> the overrides every run of it gets first: ``common``, its current limit set on a strategy entry's
+    own limit parameter or left out for a controller FMU without one (:meth:`Strategy.common`: a user's own; its
+    limit is its own business); a ``{name, overrides}`` strategy gets ``common`` as it is."""
+    return {s: named[s].common(common) if s in named else common for s in strategies}
 
 
 def _strategies(loaded: LoadedIda, scenario: Path, common: tuple[str, ...], problems: list[Problem]
-                ) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, Any]], set[str]]:
-    """Strategy -> scenario overrides, gain set -> its gains document (those the strategies use), and the
-    strategies whose controller FMU has no ``i_max`` (:func:`run_commons`).
+                ) -> tuple[dict[str, tuple[str, ...]], dict[str, dict[str, Any]], set[str], dict[str, Strategy]]:
+    """Strategy -> scenario overrides, gain set -> its gains document (those the strategies use), the
+    strategies whose controller FMU has no current limit (:func:`run_commons`) and the named strategies' entries.
 
     A named strategy is an entry of the strategy files, as in the case study
     (:mod:`orchestration.case_study.strategies`): the controller FMU, its parameters, its gain set and its
@@ -187,16 +175,15 @@ def _strategies(loaded: LoadedIda, scenario: Path, common: tuple[str, ...], prob
     found = loaded.strategy_problems()
     if found:
         problems += found
-        return {}, {}, set()
+        return {}, {}, set(), {}
     named = {s: loaded.library[s] for s in spec.strategies if isinstance(s, str)}
     docs = _gain_sets(loaded, {st.entry.gains for st in named.values()}, problems)
     try:
         connections = list(load_tree(scenario)[0].get("connections") or [])
     except ScenarioError:  # an unreadable scenario: prepare_ida reports it (load_scenario)
-        return {}, docs, set()
+        return {}, docs, set(), {}
     strategies: dict[str, tuple[str, ...]] = {}
-    unlimited = {s for s, st in named.items() if st.fmu_path is not None and st.fmu_path.is_file()
-                 and not _has_current_limit(st.fmu_path)}
+    unlimited = {s for s, st in named.items() if st.limit_parameter() is None}
     for s in spec.strategies:
         if not isinstance(s, str):
             strategies[s.name] = tuple(s.overrides)
@@ -207,13 +194,12 @@ def _strategies(loaded: LoadedIda, scenario: Path, common: tuple[str, ...], prob
         gains = docs[st.entry.gains]["gains"] if st.entry.gains is not None else None
         try:
             if st.entry.fmu is not None or st.entry.connections is not None:
-                base = run_commons(common, {s: ()}, unlimited)[s]
-                check_strategy(st, scenario, (*base, "simulation.stop_time=1.0"), spec.i_max, gains, None)
-            strategies[s] = (*st.overrides(spec.i_max, gains, None), *st.connection_override(connections))
+                check_strategy(st, scenario, (*common, "simulation.stop_time=1.0"), spec.i_max, gains, None)
+            strategies[s] = (*st.overrides(spec.i_max, gains, None), *st.wiring_overrides(connections))
         except ScenarioError as exc:  # a problem the entry did not write (the scenario's) still names the strategy
             problems += [p if "(strategy " in p.message else Problem(f"{p.message} (strategy {s!r})", p.key, p.file,
                                                                      p.line) for p in exc.problems]
-    return strategies, docs, unlimited
+    return strategies, docs, unlimited, named
 
 
 def _stage(records: list[SuiteRecord], spec: IdaSpec, step: float, staging: Path) -> list[RecordComponent]:
@@ -232,9 +218,10 @@ def _stage(records: list[SuiteRecord], spec: IdaSpec, step: float, staging: Path
 
 
 def _plans(components: list[RecordComponent], strategies: dict[str, tuple[str, ...]], scenario: Path,
-           commons: dict[str, tuple[str, ...]], problems: list[Problem]) -> dict[tuple[str, str], PortablePlan]:
-    """(component id, strategy) -> checked portable plan (``commons``: each strategy's first overrides);
-    a strategy's problems are reported once."""
+           commons: dict[str, tuple[str, ...]], outputs: dict[str, str], problems: list[Problem]
+           ) -> dict[tuple[str, str], PortablePlan]:
+    """(component id, strategy) -> checked portable plan (``commons``: each strategy's first overrides; ``outputs``:
+    its recorded variables); a strategy's problems are reported once."""
     plans: dict[tuple[str, str], PortablePlan] = {}
     failing: set[str] = set()
     for c in components:
@@ -243,7 +230,7 @@ def _plans(components: list[RecordComponent], strategies: dict[str, tuple[str, .
                 continue
             try:
                 plan = plan_scenario(scenario, (*commons[name], *extra, f"ground.record=!record {c.csv}",
-                                                f"simulation.stop_time={c.stop_time_s!r}", OUTPUTS_OVERRIDE))
+                                                f"simulation.stop_time={c.stop_time_s!r}", outputs[name]))
             except ScenarioError as exc:
                 failing.add(name)
                 problems += [Problem(f"strategy {name}: {p.message}", p.key, p.file, p.line) for p in exc.problems]
@@ -286,7 +273,7 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     scenario = loaded.resolve(spec.scenario, "scenario")
     common = (*spec.overrides, f"isolator.i_max={spec.i_max!r}", f"controller.i_max={spec.i_max!r}",
               f"ground.time_scale={spec.time_scale!r}")
-    strategies, gain_sets, unlimited = _strategies(loaded, scenario, common, problems)
+    strategies, gain_sets, unlimited, named = _strategies(loaded, scenario, common, problems)
     step = None
     try:
         step = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation.step
@@ -297,7 +284,8 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     staging = Path(tempfile.mkdtemp(prefix="mre-cosim-ida-"))
     try:
         components = _stage(records, spec, step, staging)
-        plans = _plans(components, strategies, scenario, run_commons(common, strategies, unlimited), problems)
+        outputs = {s: named[s].recorded(OUTPUTS_OVERRIDE) if s in named else OUTPUTS_OVERRIDE for s in strategies}
+        plans = _plans(components, strategies, scenario, run_commons(common, strategies, named), outputs, problems)
         if problems:
             raise ScenarioError(problems)
         first = plans[(components[0].rec.id, next(iter(strategies)))].plan
