@@ -23,6 +23,8 @@ TOOLS: dict[str, tuple[str, str]] = {
     "identify": ("orchestration.identify", "identify the isolator models from shake-table data "
                                            "(orchestration/identify.py)"),
     "tune": ("orchestration.tune", "tune the SOSM gains (orchestration/tune.py)"),
+    "compare": ("orchestration.compare", "compare run folders: peaks and overlays of their report roles "
+                                         "(orchestration/compare.py)"),
     "inspect": ("orchestration.inspect_fmu", "list an FMU's variables and check it against a role "
                                              "(orchestration/inspect_fmu.py)"),
     "ssp": ("orchestration.ssp", "export a scenario to an SSP 1.0 package (orchestration/ssp.py)"),

@@ -1,0 +1,199 @@
+"""Runs side by side: the peaks of their report roles in one table, and overlays of their time histories.
+
+A run folder (``run.py``'s) holds ``summary.json`` (every variable's peak, computed from every step during
+the run), ``manifest.json`` (the scenario, with its report roles) and ``timeseries.csv``. The comparison
+takes the variables of the first run's roles (base displacement, drifts, floor accelerations, current,
+isolator force, ground acceleration) that every run recorded; the others are named, not compared.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROLES = (  # report role, what it is, SI unit, display unit, factor SI -> display
+    ("base_displacement", "base displacement", "m", "mm", 1e3),
+    ("drifts", "storey drift", "m", "mm", 1e3),
+    ("floor_accelerations", "absolute floor acceleration", "m/s2", "m/s²", 1.0),
+    ("current", "current command", "A", "A", 1.0),
+    ("device_current", "device current", "A", "A", 1.0),
+    ("isolator_force", "isolator force", "N", "kN", 1e-3),
+    ("ground_acceleration", "ground acceleration", "m/s2", "m/s²", 1.0),
+)
+
+
+class ComparisonError(ValueError):
+    """A folder that is not a run, or runs with nothing in common; the message names the folder."""
+
+
+@dataclass
+class Run:
+    """One run folder: its label, its report roles (role -> variables), its peaks and its time series."""
+
+    folder: Path
+    label: str
+    roles: dict[str, list[str]]
+    peaks: dict[str, float]  # variable -> peak |value| over every step [SI]
+    valid: bool | None
+    names: dict[str, str] = field(default_factory=dict)  # variable -> the report's label for it
+    _series: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+    def series(self) -> dict[str, np.ndarray]:
+        """The recorded columns by name (read on first use)."""
+        if self._series is None:
+            path = self.folder / "timeseries.csv"
+            with open(path, newline="") as f:
+                header = next(csv.reader(f), [])
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            self._series = {name: data[:, k] for k, name in enumerate(header)}
+        return self._series
+
+
+def read_run(folder: Path) -> Run:
+    """A run folder; ComparisonError naming the folder and the file if it is none (or not a complete run)."""
+    folder = Path(folder)
+    texts = {}
+    for name in ("summary.json", "manifest.json"):
+        try:
+            texts[name] = json.loads((folder / name).read_text())
+        except FileNotFoundError:
+            raise ComparisonError(f"{folder}: no {name} (not a run folder of run.py)") from None
+        except (OSError, ValueError) as exc:
+            raise ComparisonError(f"{folder}/{name}: unreadable ({exc})") from None
+    summary, manifest = texts["summary.json"], texts["manifest.json"]
+    if not (folder / "timeseries.csv").is_file():
+        raise ComparisonError(f"{folder}: no timeseries.csv")
+    report = ((manifest.get("scenario") or {}).get("report") or {}) if isinstance(manifest, dict) else {}
+    roles = {}
+    for role, *_ in ROLES:
+        value = report.get(role)
+        names = [value] if isinstance(value, str) else [v for v in value or [] if isinstance(v, str)]
+        if names:
+            roles[role] = names
+    peaks = {k: float(v["max_abs"]) for k, v in (summary.get("variables") or {}).items()
+             if isinstance(v, dict) and isinstance(v.get("max_abs"), int | float)}
+    label = str(summary.get("caption") or folder.name)
+    names = {k: v for k, v in (report.get("labels") or {}).items() if isinstance(v, str) and "=" not in k}
+    return Run(folder, label, roles, peaks, summary.get("valid") if isinstance(summary.get("valid"), bool) else None,
+               names)
+
+
+def labelled(runs: list[Run]) -> list[Run]:
+    """The runs, each labelled by its caption, or by its folder name where captions repeat."""
+    captions = [r.label for r in runs]
+    for r in runs:
+        if captions.count(r.label) > 1:
+            r.label = r.folder.name
+    return runs
+
+
+@dataclass(frozen=True)
+class Row:
+    """One compared variable: its role, name, display unit and each run's peak in that unit."""
+
+    role: str
+    what: str
+    variable: str
+    unit: str
+    peaks: tuple[float, ...]
+
+
+def compared(runs: list[Run]) -> tuple[list[Row], list[str]]:
+    """The rows (the first run's role variables that every run has a peak of) and a note per variable left out."""
+    rows, notes = [], []
+    for role, what, _si, unit, factor in ROLES:
+        for variable in runs[0].roles.get(role, []):
+            missing = [r.folder.name for r in runs if variable not in r.peaks]
+            if missing:
+                notes.append(f"{variable} ({what}): not in {', '.join(missing)}")
+                continue
+            rows.append(Row(role, what, variable, unit, tuple(factor * r.peaks[variable] for r in runs)))
+    others = sorted({v for r in runs[1:] for vs in r.roles.values() for v in vs} - {row.variable for row in rows}
+                    - {n.split(" ")[0] for n in notes})
+    notes += [f"{v}: a role of a later run, not of {runs[0].folder.name}" for v in others]
+    return rows, notes
+
+
+def _number(x: float) -> str:
+    return "nan" if not math.isfinite(x) else f"{x:.4g}"
+
+
+def table(runs: list[Run], rows: list[Row]) -> str:
+    """The peaks as a plain-text table: a column per run, and each later run's change against the first."""
+    head = ["variable", "unit", *(f"[{k + 1}]" for k in range(len(runs))),
+            *(f"[{k + 1}] vs [1]" for k in range(1, len(runs)))]
+    body = []
+    for row in rows:
+        first = row.peaks[0]
+        changes = [f"{100 * (p / first - 1):+.1f} %" if first else "-" for p in row.peaks[1:]]
+        body.append([row.variable, row.unit, *(_number(p) for p in row.peaks), *changes])
+    widths = [max(len(str(c)) for c in col) for col in zip(head, *body, strict=True)]
+    lines = ["  ".join(str(c).ljust(w) for c, w in zip(line, widths, strict=True)).rstrip()
+             for line in (head, *body)]
+    legend = [f"[{k + 1}] {r.label} ({r.folder}){'' if r.valid is not False else ', NOT numerically valid'}"
+              for k, r in enumerate(runs)]
+    return "\n".join([*legend, "peaks (largest |value| over every step, summary.json):", *lines])
+
+
+def write_csv(runs: list[Run], rows: list[Row], path: Path) -> None:
+    """peaks.csv: variable, unit, then each run's peak (columns named by run folder)."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["role", "variable", "unit", *(r.folder.name for r in runs)])
+        for row in rows:
+            w.writerow([row.role, row.variable, row.unit, *(repr(p) for p in row.peaks)])
+
+
+STYLES = ({"ls": "-"}, {"ls": "--"}, {"ls": ":"}, {"ls": "-."})
+
+
+def figures(runs: list[Run], rows: list[Row], out: Path, formats: tuple[str, ...], dpi: int, made: list[Path]
+            ) -> list[Path]:
+    """One overlay per role (its variables in a grid of panels, a line style per run) in each format; each file
+    is appended to ``made`` as soon as it is written (so a failure can remove them)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from orchestration.master.report import decimate
+
+    factor = {role: f for role, *_, f in ROLES}
+    for role, what, *_ in ROLES:
+        mine = [row for row in rows if row.role == role]
+        if not mine:
+            continue
+        cols = 1 if len(mine) == 1 else 2
+        n_rows = math.ceil(len(mine) / cols)
+        fig, axes = plt.subplots(n_rows, cols, figsize=(9 if cols == 2 else 8, 2.6 * n_rows + 0.6), squeeze=False,
+                                 sharex=True)
+        for ax, row in zip(axes.flat, mine, strict=False):
+            for k, r in enumerate(runs):
+                ts = r.series()
+                if row.variable not in ts:
+                    continue
+                t, y = decimate(ts["time"], factor[role] * ts[row.variable])
+                ax.plot(t, y, lw=0.8, label=f"[{k + 1}] {r.label}", color=f"C{k % 10}", **STYLES[k % len(STYLES)])
+            name = runs[0].names.get(row.variable, "")
+            ax.set_title(f"{row.variable}" + (f": {name}" if name and "{" not in name else ""), fontsize=9,
+                         loc="left")
+            ax.set_ylabel(f"{what} [{row.unit}]", fontsize=8)
+            ax.grid(alpha=0.3)
+        for ax in list(axes.flat)[len(mine):]:
+            ax.set_visible(False)
+        for ax in axes[-1]:
+            ax.set_xlabel("time [s]")
+        handles, labels = axes.flat[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="upper center", ncol=1, fontsize=8, frameon=False)
+        fig.tight_layout(rect=(0, 0, 1, 1 - 0.07 * len(runs) / n_rows))
+        for ext in formats:
+            path = out / f"{role}.{ext}"
+            fig.savefig(path, dpi=dpi)
+            made.append(path)
+        plt.close(fig)
+    return made
