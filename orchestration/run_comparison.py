@@ -46,6 +46,13 @@ class Run:
     def series(self) -> dict[str, np.ndarray]:
         """The recorded columns by name (read on first use)."""
         if self._series is None:
+            parquet = self.folder / "timeseries.parquet"
+            if parquet.is_file():
+                import pyarrow.parquet as pq
+
+                table = pq.read_table(parquet)
+                self._series = {name: table.column(name).to_numpy().astype(float) for name in table.column_names}
+                return self._series
             path = self.folder / "timeseries.csv"
             with open(path, newline="") as f:
                 header = next(csv.reader(f), [])
@@ -66,8 +73,8 @@ def read_run(folder: Path) -> Run:
         except (OSError, ValueError) as exc:
             raise ComparisonError(f"{folder}/{name}: unreadable ({exc})") from None
     summary, manifest = texts["summary.json"], texts["manifest.json"]
-    if not (folder / "timeseries.csv").is_file():
-        raise ComparisonError(f"{folder}: no timeseries.csv")
+    if not any((folder / f"timeseries.{ext}").is_file() for ext in ("csv", "parquet")):
+        raise ComparisonError(f"{folder}: no timeseries.csv or timeseries.parquet")
     report = ((manifest.get("scenario") or {}).get("report") or {}) if isinstance(manifest, dict) else {}
     roles = {}
     for role, *_ in ROLES:

@@ -62,6 +62,9 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
         raise ScenarioError(problems)
     plan = plans[UNCONTROLLED]
     sim = plan.loaded.scenario.simulation
+    problem = every_step_problem(sim)
+    if problem:
+        raise ScenarioError(f"{path}: {problem}")
     # the in-process model: for the Radau reference, and for the sweep on the paper's system (another plant's sweep
     # co-simulates its FMUs, tuning.sweep_currents)
     needs_model = spec.reference.enabled or ("best-constant" in spec.strategies and monolithic_problem(plan) is None)
@@ -72,6 +75,16 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
                       ground.get("scale"), ground.get("time_scale", 1.0),
                       plan.parameters.get("isolator", {}).get("n_isolators"))
     return info, plan
+
+
+def every_step_problem(sim: Any) -> str | None:
+    """Why a study cannot run a scenario whose results file is decimated or not CSV (None: it can): its criteria
+    are computed from every step of each run's ``timeseries.csv``."""
+    if sim.output_interval == 1 and sim.output_format == "csv":
+        return None
+    return (f"simulation.output_interval = {sim.output_interval}, output_format = {sim.output_format}: a study "
+            "computes its criteria from every step of its runs' timeseries.csv, so its runs need the defaults "
+            "(1, csv); set them on single runs (run.py)")
 
 
 def prepare(study: LoadedStudy) -> PreparedStudy:

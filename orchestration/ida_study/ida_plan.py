@@ -19,6 +19,7 @@ from typing import Any
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
 from orchestration.case_study.case_jobs import RECORDED
+from orchestration.case_study.case_plan import every_step_problem
 from orchestration.case_study.strategies import Strategy, check_strategy
 from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
 from orchestration.engine_hooks import plan_scenario
@@ -276,7 +277,11 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     strategies, gain_sets, unlimited, named = _strategies(loaded, scenario, common, problems)
     step = None
     try:
-        step = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation.step
+        sim = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation
+        step = sim.step
+        problem = every_step_problem(sim)
+        if problem:
+            problems.append(Problem(problem, "scenario", str(path)))
     except ScenarioError as exc:
         problems += exc.problems
     if problems or not records or step is None:

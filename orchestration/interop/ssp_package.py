@@ -93,7 +93,7 @@ CONNECTOR_KINDS = ("input", "output", "parameter", "calculatedParameter")
 _TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
 SETTINGS_KEYS = {"format", "description", "simulation", "outputs", "results", "report", "limits"}
 """What the settings annotation may set (the SSD gives the name, units, connections and times)."""
-SIMULATION_KEYS = {"step", "algorithm", "inputs", "order", "executor"}
+SIMULATION_KEYS = {"step", "algorithm", "inputs", "order", "executor", "output_interval", "output_format"}
 """What it may set under ``simulation``."""
 MAX_XML_BYTES = 64 << 20
 """Largest SSD or SSV file parsed."""

@@ -497,3 +497,50 @@ def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.nd
             f.write("".join(row % values for values in zip(*columns, strict=True)))
 
     atomic_write(path, write)
+
+
+def kept_rows(count: int, interval: int) -> slice | np.ndarray:
+    """The rows a results file holds of ``count`` recorded ones: every ``interval``-th from the first, and the
+    last (a slice when that is all of them or the last falls on the interval)."""
+    if interval == 1 or count == 0 or (count - 1) % interval == 0:
+        return slice(0, count, interval)
+    return np.append(np.arange(0, count, interval), count - 1)
+
+
+def write_results(folder: Path, recorder: Recorder, interval: int = 1, fmt: str = "csv") -> Path:
+    """The recorded rows as the run's results file, ``timeseries.csv`` (:func:`write_timeseries`) or
+    ``timeseries.parquet`` (:func:`write_parquet`), every ``interval``-th row and the last; its path."""
+    rows = kept_rows(recorder.count, interval)
+    time, data = recorder.time[: recorder.count][rows], recorder.data[: recorder.count][rows]
+    index = np.arange(recorder.count)[rows] if recorder.strings else ()
+    strings = {k: [values[i] for i in index] for k, values in recorder.strings.items()}
+    path = Path(folder) / f"timeseries.{fmt}"
+    if fmt == "parquet":
+        write_parquet(path, time, recorder.names, data, recorder.kinds, strings)
+    else:
+        write_timeseries(path, time, recorder.names, data, recorder.kinds, strings)
+    return path
+
+
+def write_parquet(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray, kinds: Sequence[str],
+                  strings: Mapping[int, Sequence[str]]) -> None:
+    """The rows as a Parquet table (pyarrow): ``time`` [s] first as float64, then one column per variable in SI:
+    Reals as float32 (7 significant digits, relative error at most 6e-8: more than the 3-4 digits any table
+    prints; timeseries.csv keeps 12), integers as int64, Strings as text. Byte-stream-split and zstd-compressed
+    (a Kobe run at every 10th step: 1.3 MB, 4.1 MB as float64), written atomically. The units are the FMUs'
+    (SI at every boundary, docs/fmu_variables.md); the summary's peaks come from every step in float64."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    columns = [pa.array(np.asarray(time, dtype=np.float64))]
+    for k, kind in enumerate(kinds):
+        if kind == "string":
+            columns.append(pa.array([str(v) for v in strings[k]], type=pa.string()))
+        elif kind == "integer":
+            columns.append(pa.array(np.asarray(data[:, k]).astype(np.int64)))
+        else:
+            columns.append(pa.array(np.asarray(data[:, k], dtype=np.float32)))
+    table = pa.table(columns, names=["time", *names])
+    floats = [n for n, kind in zip(names, kinds, strict=True) if kind == "real"]
+    atomic_write(Path(path), lambda f: pq.write_table(table, f, compression="zstd", use_dictionary=False,
+                                                      use_byte_stream_split=floats or False), binary=True)

@@ -26,6 +26,7 @@ from pydantic import (
     SerializeAsAny,
     Strict,
     StrictBool,
+    StrictInt,
     ValidationError,
     field_validator,
     model_validator,
@@ -141,6 +142,11 @@ class SimulationSpec(_Strict):
     executor: Literal["auto", "native", "python"] = Field(
         "auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
     )
+    output_interval: StrictInt = Field(
+        1, ge=1, description="the results file holds every n-th communication point (and the last); the summary's "
+                             "peaks and statistics still come from every step")
+    output_format: Literal["csv", "parquet"] = Field(
+        "csv", description="timeseries.csv (12 significant digits), or timeseries.parquet (float64, zstd)")
 
     @model_validator(mode="after")
     def _grid(self) -> SimulationSpec:
@@ -516,7 +522,8 @@ def result_size_problem(simulation: SimulationSpec, n_recorded: int, results_dir
     space where the results go, or ``MRE_COSIM_MAX_RESULT_MB``.
     """
     rows, cols = simulation.n_steps + 1, n_recorded + 1
-    need = rows * cols * (8 + CSV_BYTES_PER_VALUE)
+    written = -(-rows // simulation.output_interval) + 1  # every n-th row and the last
+    need = rows * cols * 8 + written * cols * CSV_BYTES_PER_VALUE
     try:
         budget = env_megabytes(MEMORY_ENV, None)
     except EnvSettingError as exc:

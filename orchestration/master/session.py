@@ -21,7 +21,7 @@ from orchestration.master.errors import SimulationError
 from orchestration.master.execution import ExecutionResult, StopRequest, execute
 from orchestration.master.fmi_status import UNIT_LOGGER, LogRecord
 from orchestration.master.monitor import Monitor
-from orchestration.master.recorder import CsvProcess, Recorder, RowStorage, column_kind, write_timeseries
+from orchestration.master.recorder import CsvProcess, Recorder, RowStorage, column_kind, write_results
 from orchestration.master.report import PlotFailed, PlotProcess, RunDescription, caption, plot, report_summary
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import (
@@ -147,7 +147,8 @@ def run_plan(
     kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
     storage, plotter = _plot_process(plan, folder, described, kinds) if plots else (None, None)  # before any thread
     csv_process = None  # timeseries.csv written by a forked process while the units step (CsvProcess)
-    if CsvProcess.wanted(sc.simulation.n_steps + 1, kinds):
+    output = sc.simulation.output_interval, sc.simulation.output_format
+    if output == (1, "csv") and CsvProcess.wanted(sc.simulation.n_steps + 1, kinds):
         if storage is None:
             storage = RowStorage(sc.simulation.n_steps + 1, len(plan.recorded), folder, shared=True)
         csv_process = CsvProcess.start(folder / "timeseries.csv", [f"{u}.{v}" for u, v in plan.recorded], storage,
@@ -229,9 +230,7 @@ def run_plan(
     elif plotter is not None:
         plotter.draw(recorder.count)  # drawn while the summary and the manifest are made (and the CSV finished)
     if csv_process is None:
-        save("timeseries.csv", lambda: write_timeseries(folder / "timeseries.csv", recorder.times, recorder.names,
-                                                        recorder.data[: recorder.count], recorder.kinds,
-                                                        recorder.strings))
+        save(f"timeseries.{output[1]}", lambda: write_results(folder, recorder, *output))
     if plots and plotter is None and recorder.count > 1:
         save("plots (*.png)", lambda: _plot_inline(recorder, plan, folder, described))
     run = run_id(folder)
@@ -249,6 +248,9 @@ def run_plan(
         "executor": result.executor,
         **({"executor_note": result.executor_note} if result.executor_note else {}),
         "unit_warnings": warnings,
+        "results_file": {"file": f"timeseries.{output[1]}", "every_nth_step": output[0],
+                         "rows": len(range(0, recorder.count, output[0])) + int((recorder.count - 1) % output[0] != 0)
+                         if recorder.count else 0},
     }
     summary |= report_summary(recorder, plan.report, plan.report_hook, described, set(summary))
     manifest = {
