@@ -403,7 +403,7 @@ def _disk_full(*args, **kwargs):
 def test_timeseries_write_failure_is_not_complete_and_exits_1(tmp_path, monkeypatch, capsys):
     from orchestration import run
 
-    monkeypatch.setattr(session, "write_timeseries", _disk_full)
+    monkeypatch.setattr(session, "write_results", _disk_full)
     out = tmp_path / "run"
     code = run.main([str(ELCENTRO), "--set", "simulation.stop_time=0.05", "--out", str(out), "--no-plots", "--quiet"])
     err = capsys.readouterr().err

@@ -513,6 +513,11 @@ def _free_bytes(folder: Path) -> int:
         return 2**62  # unknown: let the write itself report a full disk
 
 
+def rows_written(rows: int, interval: int) -> int:
+    """How many of ``rows`` recorded rows the results file holds at ``output_interval``: every n-th and the last."""
+    return 0 if rows <= 0 else -(-rows // interval) + int((rows - 1) % interval != 0)
+
+
 def result_size_problem(simulation: SimulationSpec, n_recorded: int, results_dir: Path) -> str | None:
     """Why a run's results would not fit on disk (checked before any folder is created), or None.
 
@@ -522,7 +527,7 @@ def result_size_problem(simulation: SimulationSpec, n_recorded: int, results_dir
     space where the results go, or ``MRE_COSIM_MAX_RESULT_MB``.
     """
     rows, cols = simulation.n_steps + 1, n_recorded + 1
-    written = -(-rows // simulation.output_interval) + 1  # every n-th row and the last
+    written = rows_written(rows, simulation.output_interval)
     need = rows * cols * 8 + written * cols * CSV_BYTES_PER_VALUE
     try:
         budget = env_megabytes(MEMORY_ENV, None)

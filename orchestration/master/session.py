@@ -31,6 +31,7 @@ from orchestration.master.runfolder import (
     sha256,
     write_json,
 )
+from orchestration.master.scenario import rows_written
 from orchestration.master.yaml_source import DataFile
 
 WARNINGS_SHOWN = 20
@@ -249,8 +250,7 @@ def run_plan(
         **({"executor_note": result.executor_note} if result.executor_note else {}),
         "unit_warnings": warnings,
         "results_file": {"file": f"timeseries.{output[1]}", "every_nth_step": output[0],
-                         "rows": len(range(0, recorder.count, output[0])) + int((recorder.count - 1) % output[0] != 0)
-                         if recorder.count else 0},
+                         "rows": rows_written(recorder.count, output[0])},
     }
     summary |= report_summary(recorder, plan.report, plan.report_hook, described, set(summary))
     manifest = {
