@@ -25,6 +25,8 @@ TOOLS: dict[str, tuple[str, str]] = {
     "tune": ("orchestration.tune", "tune the SOSM gains (orchestration/tune.py)"),
     "compare": ("orchestration.compare", "compare run folders: peaks and overlays of their report roles "
                                          "(orchestration/compare.py)"),
+    "verdict": ("orchestration.verdict", "compare an IDA study's strategies: medians with intervals, paired "
+                                         "tests (orchestration/verdict.py)"),
     "inspect": ("orchestration.inspect_fmu", "list an FMU's variables and check it against a role "
                                              "(orchestration/inspect_fmu.py)"),
     "ssp": ("orchestration.ssp", "export a scenario to an SSP 1.0 package (orchestration/ssp.py)"),

@@ -14,7 +14,7 @@ import pytest
 from orchestration import console
 
 PROJECT = Path(__file__).resolve().parent.parent
-TOOLS = ("run", "study", "ida", "identify", "tune", "compare", "inspect", "ssp", "build")
+TOOLS = ("run", "study", "ida", "identify", "tune", "compare", "verdict", "inspect", "ssp", "build")
 
 
 def console_command() -> list[str]:

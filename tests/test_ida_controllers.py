@@ -248,3 +248,23 @@ def test_the_shipped_controller_ida_is_valid():
                    and "coil" in pp.plan.descriptions for pp in prepared.plans.values())
     finally:
         prepared.cleanup()
+
+
+def test_every_span_is_whole_controller_steps_on_a_multi_rate_plant(tmp_path):
+    """The nominal plant couples at 0.25 ms and samples the controller at 1 ms: each component's span is rounded up
+    to whole 1 ms periods (a 0.25 ms tail made it 20894 base steps, refused by the controller's own step)."""
+    study = tmp_path / "ida.yaml"
+    study.write_text(f"name: ida-mr\nscenario: {SCENARIOS / 'nominal_plant.yaml'}\n"
+                     f"suite: {{folder: {_suite(tmp_path)}}}\ntime_scale: 0.2\nwindow: {{tail_s: 0.50025}}\n"
+                     "intensity: {measure: sa, period_s: 0.84, levels: [0.05]}\n"
+                     "limit_states: {iso: {quantity: isolator_displacement, threshold: 0.015}}\n"
+                     f"strategies: [passive-off, lyapunov]\ngains: {SCENARIOS / 'sosm_gains.yaml'}\n"
+                     f"output: {tmp_path / 'studies'}\n")
+    prepared = prepare_ida(study, *load_ida(study))
+    try:
+        for c in prepared.components:
+            periods = c.stop_time_s / 0.001
+            assert abs(periods - round(periods)) < 1e-6, c.stop_time_s
+        assert {s for _, s in prepared.plans} == {"passive-off", "lyapunov"}
+    finally:
+        prepared.cleanup()

@@ -277,8 +277,12 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     strategies, gain_sets, unlimited, named = _strategies(loaded, scenario, common, problems)
     step = None
     try:
-        sim = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario.simulation
-        step = sim.step
+        loaded_scenario = load_scenario(scenario, (*common, "simulation.stop_time=1.0")).scenario
+        sim = loaded_scenario.simulation
+        # every run's span is a whole number of the coarsest period, so that each unit's own step (units.X.step,
+        # e.g. a controller sampling at 1 ms over a 0.25 ms plant) ends on stop_time
+        multiples = [round(u.step / sim.step) for u in loaded_scenario.units.values() if u.step is not None]
+        step = sim.step * math.lcm(1, *multiples)
         problem = every_step_problem(sim)
         if problem:
             problems.append(Problem(problem, "scenario", str(path)))
