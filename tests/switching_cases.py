@@ -59,7 +59,7 @@ def overrides(record: str, strategy: str, plant_step: float, controller_step: fl
 
     s = _strategy(strategy)
     gains = sosm_gains() if s.entry.gains is not None else None
-    conns = () if s.entry.connections is None else s.connection_override(
+    conns = () if s.entry.connections is None else s.wiring_overrides(
         list(load_tree(SCENARIOS / f"{record}.yaml")[0].get("connections") or []))
     out = [*s.overrides(I_MAX, gains, None), *conns, f"simulation.step={plant_step!r}"]
     if not math.isclose(plant_step, controller_step, rel_tol=1e-12):
