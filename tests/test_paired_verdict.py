@@ -98,7 +98,7 @@ def test_a_consistent_difference_on_eight_records_is_called_and_a_mixed_one_is_n
     assert by["a", "b"].records == 8 and by["a", "b"].median_ratio == pytest.approx(0.9)
     assert by["a", "b"].p == pytest.approx(2 / 2 ** 8)  # every record one sign: the exact smallest p
     assert by["a", "b"].p_holm == pytest.approx(3 * 2 / 2 ** 8)  # the smallest of 3 p-values, times 3
-    assert by["a", "b"].verdict(0.05) == "a lower (10.0 % median difference)"
+    assert by["a", "b"].verdict(0.05) == "a lower (median ratio 0.900, -10.0 %)"
     assert by["b", "c"].verdict(0.05) == "not distinguishable on 8 records"
     assert {(s.strategy, s.records) for s in summaries} == {("a", 8), ("b", 8), ("c", 8)}
 

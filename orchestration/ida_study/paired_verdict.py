@@ -127,8 +127,8 @@ class Pair:
     def verdict(self, alpha: float) -> str:
         if not self.p_holm < alpha:
             return f"not distinguishable on {self.records} records"
-        lower = self.a if self.median_ratio < 1 else self.b
-        return f"{lower} lower ({100 * abs(self.median_ratio - 1):.1f} % median difference)"
+        lower, ratio = (self.a, self.median_ratio) if self.median_ratio < 1 else (self.b, 1 / self.median_ratio)
+        return f"{lower} lower (median ratio {ratio:.3f}, {100 * (ratio - 1):+.1f} %)"
 
 
 def compare(rows: list[dict[str, str]], level: float, strategies: list[str], criteria: tuple[str, ...] = CRITERIA
