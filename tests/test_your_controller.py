@@ -272,3 +272,15 @@ def test_inspect_a_building_in_the_controller_role_is_exit_1(capsys):
     out = capsys.readouterr().out
     assert "problem: ShearBuilding has no output 'i' for the current command" in out
     assert "x_0 (output, m)" in out and "cannot play the controller" in out
+
+
+@pytest.mark.parametrize("value", ["''", "' u'", "'u -> x'"])
+def test_a_mapping_that_is_no_variable_name_is_exit_2(folder, value):
+    good = (folder / "my_controller" / "my_benchmark.yaml").read_text()
+    bad = folder / "my_controller" / f"name_{abs(hash(value))}.yaml"
+    bad.write_text(re.sub(r"^    current: u\b.*$", f"    current: {value}", good, count=1, flags=re.M))
+    out = run(f"mre-cosim study {shlex.quote(str(bad))} --out {shlex.quote(str(folder / 'never'))}", folder)
+    assert out.returncode == 2, out.stderr
+    assert "strategy_definitions.displacement-switch.current" in out.stderr
+    assert "must be the name of one of the controller FMU's variables" in out.stderr
+    assert not (folder / "never").exists()

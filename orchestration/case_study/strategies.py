@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from orchestration.building_report import REPORT
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
@@ -65,6 +65,13 @@ class StrategyEntry(BaseModel):
     connections: list[Any] | None = None  # replace the scenario's connections into the controller
     current: str = COMMAND  # the controller output that is its current command [A] (the role's ``i``)
     limit: str | None = None  # the parameter the study's current limit sets [A]; None: i_max where the FMU has it
+
+    @field_validator("current", "limit")
+    @classmethod
+    def _a_variable_name(cls, value: str | None) -> str | None:
+        if value is not None and (not value.strip() or value != value.strip() or "\x00" in value or "->" in value):
+            raise ValueError(f"must be the name of one of the controller FMU's variables, got {value!r}")
+        return value
 
 
 class StrategyFile(BaseModel):
