@@ -14,6 +14,7 @@ import numpy as np
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_metrics import Metrics, Series, current_limit, pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
+from orchestration.figure_axes import few_ticks, plain_log_axis
 
 COLORS = defaultdict(lambda: "tab:gray", {
     "passive-off": "0.25", "passive-on": "tab:blue", "best-constant": "tab:green", "sosm": "tab:red",
@@ -55,8 +56,12 @@ def pareto_figure(study: CaseStudyRecord) -> Any:
     chosen = doc["gains"]
     proc = doc.get("procedure", {})
     window = proc.get("stop_time_s")
-    fig, axes = plt.subplots(1, len(records), figsize=(4.2 * len(records), 3.6), squeeze=False)
-    for ax, r in zip(axes[0], records, strict=True):
+    cols = min(2, len(records))  # a grid, not a strip
+    n_rows = -(-len(records) // cols)
+    fig, axes = plt.subplots(n_rows, cols, figsize=(5.2 * cols, 3.8 * n_rows), squeeze=False)
+    for ax in list(axes.flat)[len(records):]:
+        ax.set_visible(False)
+    for ax, r in zip(axes.flat, records, strict=False):
         pts = [(row[f"{r}.i_mean"], row[f"{r}.a3"]) for row in sosm]
         sat = [row[f"{r}.s_bound"] for row in sosm]
         sc = ax.scatter(*zip(*pts, strict=True), c=sat, cmap="viridis", vmin=0, vmax=1, s=14, label="SOSM evaluations")
@@ -68,8 +73,9 @@ def pareto_figure(study: CaseStudyRecord) -> Any:
         best = [k for k, row in enumerate(sosm) if row["lambda"] == chosen["lambda"] and row["rho"] == chosen["rho"]]
         if best:
             ax.plot(*pts[best[0]], marker="*", ms=14, mfc="none", color="k", label="chosen (sosm-fig15)")
-        ax.set(xlabel="mean current [A]", ylabel="peak top-floor acceleration a_3 [m/s²]", yscale="log",
+        ax.set(xlabel="mean current [A]", ylabel="peak top-floor acceleration a_3 [m/s²]",
                title=f"{r}, first {window:g} s" if window else r)
+        plain_log_axis(ax.yaxis)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=6)
     fig.colorbar(sc, ax=axes[0, -1], label=f"share of time at {chosen['i_max']:g} A")
@@ -161,6 +167,7 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
         axes[row, 1].set(ylabel="level (0 = base)", xlabel="peak abs. acceleration [m/s²]", yticks=range(n_levels))
         for ax in axes[row]:
             ax.grid(alpha=0.3)
+            few_ticks(ax.xaxis)
     if axes[0, 1].get_legend_handles_labels()[0]:
         axes[0, 1].legend(fontsize=7)
     fig.tight_layout()
@@ -175,8 +182,12 @@ def hysteresis_figure(study: CaseStudyRecord, series: Series, r: str) -> Any:
     if not present:
         return None
     x_id, x_lim = 1e3 * study.config["x_identified"], 1e3 * study.config["x_limit"]
-    fig, axes = plt.subplots(1, len(present), figsize=(3.2 * len(present), 3.0), squeeze=False, sharey=True)
-    for ax, s in zip(axes[0], present, strict=True):
+    cols = min(3, len(present))  # a grid, not a strip: the panels stay readable in report.html
+    n_rows = -(-len(present) // cols)
+    fig, axes = plt.subplots(n_rows, cols, figsize=(3.6 * cols, 3.1 * n_rows + 0.4), squeeze=False, sharey=True)
+    for ax in list(axes.flat)[len(present):]:
+        ax.set_visible(False)
+    for ax, s in zip(axes.flat, present, strict=False):
         ts = series[(r, s)]
         ax.plot(1e3 * ts["building.x_0"], ts["isolator.F"], color=COLORS[s], lw=0.4)
         for edge, style in ((x_id, "--"), (x_lim, ":")):
@@ -185,7 +196,8 @@ def hysteresis_figure(study: CaseStudyRecord, series: Series, r: str) -> Any:
         ax.set(title=s, xlabel="x_0 [mm]")
         ax.grid(alpha=0.3)
     n_iso = study.records[r].n_isolators
-    axes[0, 0].set_ylabel(f"force of the {n_iso} isolators together [N]" if n_iso else "isolator force F [N]")
+    for row in axes:
+        row[0].set_ylabel(f"force of the {n_iso} isolators [N]" if n_iso else "isolator force F [N]")
     fig.suptitle(f"{named(study, r)}: isolator hysteresis per strategy "
                  f"(dashed ±{x_id:g} mm identified, dotted ±{x_lim:g} mm limit)",
                  fontsize=9)

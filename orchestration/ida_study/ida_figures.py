@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from orchestration.figure_axes import plain_log_axis
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
 from orchestration.ida_study.ida_metrics import ENDED
@@ -23,6 +24,7 @@ from orchestration.ida_study.ida_records import IdaInfo
 COLORS = ("0.25", "tab:blue", "tab:red", "tab:purple", "tab:green", "tab:orange", "tab:brown", "tab:cyan")
 STYLES = {"passive-off": ":", "passive-on": "--"}
 MAX_COLUMNS = 4  # panels per row of the IDA curves
+
 
 
 def im_label(info: IdaInfo) -> str:
@@ -67,7 +69,7 @@ def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies
         ax.plot(medians, levels, color="k", lw=2.2, marker="o", ms=3, label="median")
         for x, name in ((8.0, "identified 8 mm"), (15.0, "device limit 15 mm")):
             ax.axvline(x, color="tab:orange" if x == 8.0 else "tab:red", ls="--", lw=1, label=name)
-        ax.set_xscale("log")
+        plain_log_axis(ax.xaxis)
         ax.set_title(s)
         ax.set_xlabel("peak isolator displacement [mm]")
         ax.grid(alpha=0.3, which="both")
@@ -90,8 +92,12 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
     levels = np.asarray(spec.intensity.levels, dtype=float)
     x = np.geomspace(levels[0] / 2, levels[-1] * 1.5, 200)
     names = list(fits)
-    fig, axes = plt.subplots(1, len(names), figsize=(4.4 * len(names), 4.0), sharey=True, squeeze=False)
-    for ax, name in zip(axes[0], names, strict=True):
+    cols = min(2, len(names))  # a grid, not a strip: each panel about half the report's width
+    n_rows = math.ceil(len(names) / cols)
+    fig, axes = plt.subplots(n_rows, cols, figsize=(6.4 * cols, 4.6 * n_rows), sharey=True, squeeze=False)
+    for ax in list(axes.flat)[len(names):]:
+        ax.set_visible(False)
+    for ax, name in zip(axes.flat, names, strict=False):
         ls = spec.limit_states[name]
         for k, (s, fit) in enumerate(fits[name].items()):
             color = COLORS[k % len(COLORS)]
@@ -104,14 +110,15 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
                         label=f"{s}: θ={fit.theta:.3g} g, β={fit.beta:.2f}")
             else:
                 ax.plot([], [], "o", color=color, label=f"{s}: {fit.kind}")
-        ax.set_xscale("log")
+        plain_log_axis(ax.xaxis)
         ax.set_ylim(-0.02, 1.02)
         ax.set_title(f"{ls.label or name}\n({ls.quantity.replace('_', ' ')} > "
                      f"{threshold_text(ls.quantity, ls.threshold)})", fontsize=9)
         ax.set_xlabel(im_label(info))
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7, loc="upper left")
-    axes[0][0].set_ylabel("P(exceed)")
+    for row in axes:
+        row[0].set_ylabel("P(exceed)")
     fig.suptitle(f"{info.name}: fragility, lognormal MLE with {100 * spec.confidence:g} % band", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
