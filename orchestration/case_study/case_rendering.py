@@ -32,11 +32,12 @@ class Block:
 
 
 def fmt(v: Any, digits: int = 3) -> str:
-    """A number for a table: 3 significant digits (whole numbers from 1e4 on); – for missing or not finite."""
+    """A number for a table: 3 significant digits, whole numbers from 1000 on (``3340``, never ``3.34e+03`` beside
+    ``10073``); – for missing or not finite."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
     if isinstance(v, float | np.floating):
-        return f"{v:.{digits}g}" if abs(v) < 1e4 else f"{v:.0f}"
+        return f"{v:.{digits}g}" if abs(v) < 10 ** digits else f"{v:.0f}"
     return str(v)
 
 
