@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import argparse
 import copy
+import csv
+import io
 import json
 import os
 import random
@@ -69,10 +71,13 @@ TOOLS = {
     "build": [PY, "-m", "components.build"],
     "api": [PY, "api_case.py"],  # a Python API script written by the case (engine_cases)
     "ida.py": [PY, str(PROJECT / "orchestration" / "ida.py")],
+    "inspect": [PY, str(PROJECT / "orchestration" / "inspect_fmu.py")],
+    "compare": [PY, str(PROJECT / "orchestration" / "compare.py")],
+    "verdict": [PY, str(PROJECT / "orchestration" / "verdict.py")],
 }
 DOCUMENTED = {"run.py": {0, 1, 2, 130}, "study.py": {0, 1, 2, 130}, "tune.py": {0, 1, 2, 130}, "ida.py": {0, 1, 2, 130},
               "identify.py": {0, 1, 2, 130, 143}, "ssp.py": {0, 2, 130}, "build": {0, 1, 2, 130},
-              "api": {0, 1, 2}}
+              "api": {0, 1, 2}, "inspect": {0, 1, 2, 130}, "compare": {0, 2, 130}, "verdict": {0, 2, 130}}
 SHORT = "simulation.stop_time=0.05"
 PRECIOUS = "precious.txt"
 IS_ROOT = os.geteuid() == 0
@@ -1979,6 +1984,155 @@ def hardening_cases(base: Path) -> list[Case]:
     return cases
 
 
+STOP37 = "37/"
+
+
+def _zip_of(members: dict[str, bytes]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return buffer.getvalue()
+
+
+def _a_run(base: Path) -> Path:
+    """One short El Centro run folder to compare against (made once for the corpus)."""
+    run = base / "good-run"
+    if not run.exists():
+        done = subprocess.run([*TOOLS["run.py"], *_elc(out=str(run))], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+    return run
+
+
+def _run_copy(good: Path, edit: Callable[[Path], None]) -> Callable[[Path], None]:
+    def setup(d: Path) -> None:
+        shutil.copytree(good, d / "other")
+        edit(d / "other")
+    return setup
+
+
+def _results(rows: list[dict[str, str]] | bytes) -> Callable[[Path], None]:
+    def setup(d: Path) -> None:
+        (d / "ida").mkdir()
+        if isinstance(rows, bytes):
+            (d / "ida" / "results.csv").write_bytes(rows)
+            return
+        with open(d / "ida" / "results.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    return setup
+
+
+def stop37_cases(base: Path) -> list[Case]:
+    """The inputs stop 37 added: the results file's interval and format, a strategy's role mapping, and the
+    inspect, compare and verdict tools (files that are not what they claim, names long or with ../, numbers that
+    are not)."""
+    cases: list[Case] = []
+    for value in ("nan", "inf", "-inf", "0", "-1", "1.5", "'10'", "true", "1e30", "100000000000000000000", "[1]"):
+        cases.append(Case(STOP37 + "results file", f"output_interval={value}", "run.py",
+                          _elc(f"simulation.output_interval={value}"), verify=_exit_2))
+    for value in ("hdf5", "../x", "123", "PARQUET", "''", "null"):
+        cases.append(Case(STOP37 + "results file", f"output_format={value}", "run.py",
+                          _elc(f"simulation.output_format={value}"), verify=_exit_2))
+    one = ("records={elcentro: elcentro.yaml}", "overrides=[simulation.stop_time=0.05, simulation.output_interval=5]",
+           "reference={enabled: false}", "strategies=[passive-off]")
+    cases.append(Case(STOP37 + "results file", "a study with output_interval", "study.py",
+                      [str(SC / "case_study.yaml"), *(a for o in one for a in ("--set", o)), "--out", "out", "--quiet",
+                       "--workers", "1"], verify=_exit_and_says(2, "every step")))
+
+    study = [str(SC / "case_study.yaml"), "--set", "records={elcentro: elcentro.yaml}", "--set",
+             "overrides=[simulation.stop_time=0.05]", "--set", "reference={enabled: false}", "--out", "out",
+             "--quiet", "--workers", "1"]
+    fmu = FMUS / "ConstantCurrent.fmu"
+    for key, value in (("current", '""'), ("current", '" i"'), ("current", '"u -> x"'), ("current", "5"),
+                       ("current", '"../x"'), ("current", '"' + "c" * 300 + '"'), ("current", '"\\u0000"'),
+                       ("limit", '"nope"'), ("limit", '"i"'), ("limit", "[1]"), ("current", '"current"')):
+        entry = f"strategy_definitions={{mine: {{fmu: {fmu}, parameters: {{current: 1.0}}, connections: [], " \
+                f"{key}: {value}}}}}"
+        cases.append(Case(STOP37 + "role mapping", f"{key}: {value}"[:70], "study.py",
+                          [*study, "--set", entry, "--set", "strategies=[passive-off, mine]"], verify=_exit_2))
+
+    long = "a" * 300
+    def text(name: str, data: bytes) -> Callable[[Path], None]:
+        def setup(d: Path) -> None:
+            (d / name).parent.mkdir(parents=True, exist_ok=True)
+            (d / name).write_bytes(data)
+        return setup
+    inspect = {"a text file named .fmu": (["t.fmu"], text("t.fmu", b"not a zip")),
+               "a zip without modelDescription": (["z.fmu"], text("z.fmu", _zip_of({"a.txt": b"x"}))),
+               "a zip with a broken modelDescription": (["b.fmu"], text("b.fmu", _zip_of(
+                   {"modelDescription.xml": b"<fmiModelDescription"}))),
+               "a folder": (["."], None), "/dev/zero": (["/dev/zero"], None), "missing": (["none.fmu"], None),
+               "a name of 300 bytes": ([f"{long}.fmu"], None), "a path with ../": (["../../../../etc/passwd"], None),
+               "--role nope": ([str(FMUS / "ShearBuilding.fmu"), "--role", "nope"], None),
+               "--map without =": ([str(FMUS / "ShearBuilding.fmu"), "--role", "building", "--map", "x"], None),
+               "--map of an unknown name": ([str(FMUS / "ShearBuilding.fmu"), "--role", "building", "--map", "zz=1"],
+                                            None)}
+    cases += [Case(STOP37 + "inspect", name, "inspect", argv, setup, out=None, verify=_exit_2)
+              for name, (argv, setup) in inspect.items()]
+    cases.append(Case(STOP37 + "inspect", "a building in the controller role: exit 1", "inspect",
+                      [str(FMUS / "ShearBuilding.fmu"), "--role", "controller"], out=None,
+                      verify=lambda work, codes, err: [] if codes == [1] else [f"exit {codes}, expected 1"]))
+
+    good = _a_run(base)
+
+    def put(name: str, data: bytes | str) -> Callable[[Path], None]:
+        def edit(run: Path) -> None:
+            (run / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+        return edit
+    bad_runs = {"summary.json is a list": put("summary.json", "[1, 2]"),
+                "summary.json is not JSON": put("summary.json", "{bad"),
+                "summary.json of 65 MiB": put("summary.json", b" " * (65 << 20)),
+                "timeseries.csv of text": put("timeseries.csv", "time,a\nx,y\n"),
+                "timeseries.csv rows shorter than its header": put("timeseries.csv", "time,a,b\n0,1\n"),
+                "timeseries.csv of random bytes": put("timeseries.csv", random.Random(37).randbytes(4096)),
+                "timeseries.parquet that is not Parquet": put("timeseries.parquet", "PAR1 no"),
+                "no results file": lambda run: (run / "timeseries.csv").unlink()}
+    cases += [Case(STOP37 + "compare", name, "compare", [str(good), "other", "--out", "out"],
+                   _run_copy(good, edit), verify=_exit_2) for name, edit in bad_runs.items()]
+    cases += [Case(STOP37 + "compare", name, "compare", [str(good), *argv], out=out, verify=_exit_2)
+              for name, argv, out in (("a file as a run", [PRECIOUS, "--out", "out"], "out"),
+                                      ("/dev/null as a run", ["/dev/null", "--out", "out"], "out"),
+                                      ("a run of 300 bytes", [long, "--out", "out"], "out"),
+                                      ("--out is a file", [str(good), "--out", PRECIOUS], None),
+                                      ("--out of 300 bytes", [str(good), "--out", f"{long}/x"], None),
+                                      ("--out below a file", [str(good), "--out", f"{PRECIOUS}/x"], None),
+                                      ("--dpi 0", [str(good), "--dpi", "0", "--out", "out"], "out"),
+                                      ("--dpi nan", [str(good), "--dpi", "nan", "--out", "out"], "out"),
+                                      ("--dpi of 10^30", [str(good), "--dpi", "1" + "0" * 30, "--out", "out"], "out"),
+                                      ("--format tiff", [str(good), "--format", "tiff", "--out", "out"], "out"))]
+
+    def row(record: str, strategy: str, value: str, intensity: str = "0.1") -> dict[str, str]:
+        return {"record": record, "component": "-", "intensity": intensity, "strategy": strategy, "valid": "True",
+                **{c: value for c in ("J1", "J2", "J3", "J4", "J5", "J7", "J8")}}
+    good_rows = [row(f"R{k}", s, str(1 + k + (s == "b") * 0.1)) for k in range(6) for s in "ab"]
+    verdicts = {"results.csv of random bytes": (_results(random.Random(7).randbytes(3000)), []),
+                "results.csv without the columns": (_results(b"a,b\n1,2\n"), []),
+                "an intensity that is text": (_results([row("R1", "a", "1", "zz"), row("R1", "b", "1", "zz")]), []),
+                "an intensity of nan": (_results([row("R1", "a", "1", "nan"), row("R1", "b", "1", "nan")]), []),
+                "--level nan": (_results(good_rows), ["--level", "nan"]),
+                "--level inf": (_results(good_rows), ["--level", "inf"]),
+                "--alpha nan": (_results(good_rows), ["--alpha", "nan"]),
+                "--alpha 0": (_results(good_rows), ["--alpha", "0"]),
+                "--alpha 1e308": (_results(good_rows), ["--alpha", "1e308"]),
+                "--criteria ../J3": (_results(good_rows), ["--criteria", "../J3"]),
+                "--strategies of one": (_results(good_rows), ["--strategies", "a"]),
+                "--out is a file": (_results(good_rows), ["--out", PRECIOUS]),
+                "--out of 300 bytes": (_results(good_rows), ["--out", f"{long}/x"])}
+    for name, (setup, extra) in verdicts.items():
+        argv = ["ida", *extra] + ([] if "--out" in extra else ["--out", "out"])
+        cases.append(Case(STOP37 + "verdict", name, "verdict", argv, setup,
+                          out=None if "--out" in extra else "out", verify=_exit_2))
+    cases.append(Case(STOP37 + "verdict", "values nan, inf, -1 and text: left out, not a crash", "verdict",
+                      ["ida", "--out", "out"], _results([row("R0", s, v) for s, v in (("a", "nan"), ("b", "inf"))]
+                                                        + [row("R1", s, v) for s, v in (("a", "-1"), ("b", "x"))]
+                                                        + good_rows),
+                      verify=lambda work, codes, err: [] if codes == [0] else [f"exit {codes}, expected 0"]))
+    cases.append(Case(STOP37 + "verdict", "no results.csv", "verdict", [".", "--out", "out"], verify=_exit_2))
+    return cases
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -1990,7 +2144,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
             *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
-            *leftover_cases(base), *hardening_cases(base)]
+            *leftover_cases(base), *hardening_cases(base), *stop37_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

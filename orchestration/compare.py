@@ -48,6 +48,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def _compare(argv: list[str] | None) -> int:
     from orchestration.run_comparison import ComparisonError, compared, figures, labelled, read_run, table, write_csv
+    from orchestration.tool_files import check_input, check_output_folder, write_new_folder
 
     args = parse_args(argv)
     if len(args.runs) < 2:
@@ -55,13 +56,18 @@ def _compare(argv: list[str] | None) -> int:
     if not 10 <= args.dpi <= 1200:
         raise UsageError(f"--dpi {args.dpi}: give 10 to 1200 dots per inch")
     out: Path | None = args.out
-    if out is not None and (out.exists() and (not out.is_dir() or any(out.iterdir()))):
-        raise UsageError(f"--out {out}: exists and is not an empty folder; nothing written")
+    if out is not None:
+        check_output_folder(out)
+    for folder in args.runs:
+        check_input(folder, "folder")
     try:
         runs = labelled([read_run(folder) for folder in args.runs])
+        rows, notes = compared(runs)
+        if out is not None:
+            for r in runs:
+                r.series()  # every results file read before anything is written
     except ComparisonError as exc:
         raise UsageError(str(exc)) from None
-    rows, notes = compared(runs)
     if not rows:
         raise UsageError("the runs have no report variable in common: " + "; ".join(notes or ["none has roles"]))
     print(table(runs, rows))
@@ -69,19 +75,13 @@ def _compare(argv: list[str] | None) -> int:
         print(f"not compared: {note}")
     if out is None:
         return EXIT_OK
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    try:
-        figures(runs, rows, out, ("png", *args.formats), args.dpi, written)
-        write_csv(runs, rows, out / "peaks.csv")  # last: a folder with peaks.csv is complete
-        written.append(out / "peaks.csv")
-    except BaseException:
-        for path in written:  # only what this command wrote
-            path.unlink(missing_ok=True)
-        if created and not any(out.iterdir()):
-            out.rmdir()
-        raise
+
+    def write(folder: Path, written: list[Path]) -> None:
+        figures(runs, rows, folder, ("png", *args.formats), args.dpi, written)
+        write_csv(runs, rows, folder / "peaks.csv")  # last: a folder with peaks.csv is complete
+        written.append(folder / "peaks.csv")
+
+    written = write_new_folder(out, write)
     print(f"compared: {out} ({len(written)} files)")
     return EXIT_OK
 

@@ -6,7 +6,7 @@ units and start values, then, with ``--role``, each variable the role needs (:mo
 and the FMU's variable that plays it. ``--map i=u`` says the FMU calls our ``i`` ``u`` (a strategy
 entry's ``current: u``; ``--map i_max=imax`` is its ``limit: imax``). No binary is loaded.
 
-Exit codes: 0 the FMU can play the role (or no role asked); 1 it cannot (each reason printed);
+Exit codes: 0 the FMU can play the role (or no role asked); 1 it cannot (each reason on stderr);
 2 no readable FMU, an unknown role or a bad ``--map``; 3 internal error (a bug; the traceback is in
 the log file named); 130 interrupted.
 """
@@ -28,7 +28,7 @@ import argparse
 
 from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, invoked_as, run_tool
 
-EXIT_CODES = ("exit codes: 0 the FMU can play the role (or no --role); 1 it cannot (each reason printed); 2 no "
+EXIT_CODES = ("exit codes: 0 the FMU can play the role (or no --role); 1 it cannot (each reason on stderr); 2 no "
               "readable FMU, unknown role or bad --map; " + EPILOG_COMMON)
 EXIT_MISMATCH = 1
 
@@ -73,11 +73,11 @@ def _start(v: object) -> str:
 def _inspect(argv: list[str] | None) -> int:
     from orchestration.master.fmu_description import FmuFormatError
     from orchestration.roles import ROLES, check_role, describe_variable, read_unit
+    from orchestration.tool_files import check_input
 
     args = parse_args(argv)
     names = _names(args.names, args.role)
-    if not args.fmu.is_file():
-        raise UsageError(f"{args.fmu}: no such file")
+    check_input(args.fmu)
     try:
         unit = read_unit(args.fmu, args.fmu.stem)
     except FmuFormatError as exc:
@@ -102,11 +102,13 @@ def _inspect(argv: list[str] | None) -> int:
                   f" - {rv.what}")
     for w in warnings:
         print(f"warning: {w}")
-    for p in problems:
-        print(f"problem: {p}")
-    print(f"{args.fmu}: {'cannot' if problems else 'can'} play the {args.role}"
-          + ("" if problems else f" ({len(warnings)} warning{'s' if len(warnings) != 1 else ''})"))
-    return EXIT_MISMATCH if problems else EXIT_OK
+    if problems:  # the reasons on stderr, as every tool's failure
+        for p in problems:
+            print(f"problem: {p}", file=sys.stderr)
+        print(f"{args.fmu}: cannot play the {args.role}", file=sys.stderr)
+        return EXIT_MISMATCH
+    print(f"{args.fmu}: can play the {args.role} ({len(warnings)} warning{'s' if len(warnings) != 1 else ''})")
+    return EXIT_OK
 
 
 def main(argv: list[str] | None = None) -> int:

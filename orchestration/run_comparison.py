@@ -44,21 +44,53 @@ class Run:
     _series: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def series(self) -> dict[str, np.ndarray]:
-        """The recorded columns by name (read on first use)."""
+        """The recorded columns by name (read on first use); ComparisonError naming the file if it is not a
+        results file of numbers with a ``time`` column."""
         if self._series is None:
             parquet = self.folder / "timeseries.parquet"
-            if parquet.is_file():
-                import pyarrow.parquet as pq
-
-                table = pq.read_table(parquet)
-                self._series = {name: table.column(name).to_numpy().astype(float) for name in table.column_names}
-                return self._series
-            path = self.folder / "timeseries.csv"
-            with open(path, newline="") as f:
-                header = next(csv.reader(f), [])
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-            self._series = {name: data[:, k] for k, name in enumerate(header)}
+            path = parquet if parquet.is_file() else self.folder / "timeseries.csv"
+            try:
+                self._series = _read_parquet(path) if path == parquet else _read_csv(path)
+            except Exception as exc:  # pyarrow's and numpy's errors for a file that is not what its name says
+                raise ComparisonError(f"{path}: not a results file ({type(exc).__name__}: "
+                                      f"{str(exc).splitlines()[0][:200] if str(exc) else ''})") from None
+            if "time" not in self._series:
+                raise ComparisonError(f"{path}: no time column")
         return self._series
+
+
+def _read_parquet(path: Path) -> dict[str, np.ndarray]:
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    return {name: table.column(name).to_numpy().astype(float) for name in table.column_names}
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as f:
+        header = next(csv.reader(f), [])
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if data.size and data.shape[1] != len(header):
+        raise ValueError(f"{data.shape[1]} columns of numbers under {len(header)} names")
+    return {name: data[:, k] for k, name in enumerate(header)}
+
+
+MAX_JSON_BYTES = 64 << 20
+"""Largest summary.json or manifest.json read (a run writes a few kB)."""
+
+
+def _mapping(value: object) -> dict:
+    return value if isinstance(value, dict) else {}
+
+
+def _number_or_nan(value: object) -> float:
+    """A JSON number as a float (nan for anything else, or for an integer too large for one)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return math.nan
+    try:
+        return float(value)
+    except OverflowError:
+        return math.nan
 
 
 def read_run(folder: Path) -> Run:
@@ -67,25 +99,30 @@ def read_run(folder: Path) -> Run:
     texts = {}
     for name in ("summary.json", "manifest.json"):
         try:
+            if (folder / name).stat().st_size > MAX_JSON_BYTES:
+                raise ComparisonError(f"{folder}/{name}: larger than {MAX_JSON_BYTES >> 20} MiB, not a run's")
             texts[name] = json.loads((folder / name).read_text())
         except FileNotFoundError:
             raise ComparisonError(f"{folder}: no {name} (not a run folder of run.py)") from None
         except (OSError, ValueError) as exc:
             raise ComparisonError(f"{folder}/{name}: unreadable ({exc})") from None
+        if not isinstance(texts[name], dict):
+            raise ComparisonError(f"{folder}/{name}: not a run's {name} (a JSON {type(texts[name]).__name__})")
     summary, manifest = texts["summary.json"], texts["manifest.json"]
     if not any((folder / f"timeseries.{ext}").is_file() for ext in ("csv", "parquet")):
         raise ComparisonError(f"{folder}: no timeseries.csv or timeseries.parquet")
-    report = ((manifest.get("scenario") or {}).get("report") or {}) if isinstance(manifest, dict) else {}
+    report = _mapping(_mapping(manifest.get("scenario")).get("report"))
     roles = {}
     for role, *_ in ROLES:
         value = report.get(role)
-        names = [value] if isinstance(value, str) else [v for v in value or [] if isinstance(v, str)]
+        names = [value] if isinstance(value, str) else [v for v in value if isinstance(v, str)] \
+            if isinstance(value, list) else []
         if names:
             roles[role] = names
-    peaks = {k: float(v["max_abs"]) for k, v in (summary.get("variables") or {}).items()
-             if isinstance(v, dict) and isinstance(v.get("max_abs"), int | float)}
+    peaks = {k: _number_or_nan(v.get("max_abs")) for k, v in _mapping(summary.get("variables")).items()
+             if isinstance(v, dict) and "max_abs" in v}
     label = str(summary.get("caption") or folder.name)
-    names = {k: v for k, v in (report.get("labels") or {}).items() if isinstance(v, str) and "=" not in k}
+    names = {k: v for k, v in _mapping(report.get("labels")).items() if isinstance(v, str) and "=" not in k}
     return Run(folder, label, roles, peaks, summary.get("valid") if isinstance(summary.get("valid"), bool) else None,
                names)
 

@@ -53,11 +53,13 @@ def _verdict(argv: list[str] | None) -> int:
     from mre_common.atomic_files import atomic_write
     from orchestration.ida_study.paired_verdict import CRITERIA, VerdictError, compare, levels, min_records_for
     from orchestration.ida_study.paired_verdict import read_results as read
+    from orchestration.tool_files import check_input, check_output_folder, write_new_folder
 
     args = parse_args(argv)
     out: Path = args.out
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise UsageError(f"--out {out}: exists and is not an empty folder; nothing written")
+    check_output_folder(out)
+    check_input(args.folder, "folder")
+    check_input(args.folder / "results.csv")
     if not 0 < args.alpha < 1:
         raise UsageError(f"--alpha {args.alpha}: give a probability between 0 and 1")
     unknown = [c for c in args.criteria if c not in CRITERIA]
@@ -99,31 +101,24 @@ def _verdict(argv: list[str] | None) -> int:
     for p in pairs:
         lines.append(f"| {p.criterion} | {p.a} | {p.b} | {p.records} | {p.median_ratio:.3f} | {p.p:.3g} | "
                      f"{p.p_holm:.3g} | {p.verdict(args.alpha)} |")
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    try:
+    def write(folder: Path, written: list[Path]) -> None:
         def table(name: str, head: list[str], body: list[list[object]]) -> None:
-            def write(f) -> None:
+            def rows(f) -> None:
                 w = csv.writer(f)
                 w.writerow(head)
                 w.writerows(body)
-            atomic_write(out / name, write)
-            written.append(out / name)
+            atomic_write(folder / name, rows)
+            written.append(folder / name)
 
         table("summary.csv", ["strategy", "criterion", "median", "low", "high", "records"],
               [[s.strategy, s.criterion, s.median, s.low, s.high, s.records] for s in summaries])
         table("pairs.csv", ["criterion", "a", "b", "records", "median_ratio", "p", "p_holm", "verdict"],
               [[p.criterion, p.a, p.b, p.records, p.median_ratio, p.p, p.p_holm, p.verdict(args.alpha)]
                for p in pairs])
-        atomic_write(out / "verdict.md", lambda f: f.write("\n".join(lines) + "\n"))  # last: the folder is complete
-        written.append(out / "verdict.md")
-    except BaseException:
-        for path in written:
-            path.unlink(missing_ok=True)
-        if created and not any(out.iterdir()):
-            out.rmdir()
-        raise
+        atomic_write(folder / "verdict.md", lambda f: f.write("\n".join(lines) + "\n"))  # last: complete
+        written.append(folder / "verdict.md")
+
+    write_new_folder(out, write)
     print("\n".join(lines))
     return EXIT_OK
 

@@ -140,7 +140,7 @@ def test_bad_input_is_exit_2_and_writes_nothing(tmp_path, capsys, case):
             "out not empty": [str(tmp_path / "ida"), "--out", str(tmp_path / "full")]}[case]
     assert main(args) == 2
     err = capsys.readouterr().err
-    expected = {"no results": "results.csv: cannot be read", "level": "--level 0.3: the study ran 0.1",
+    expected = {"no results": "results.csv: No such file or directory", "level": "--level 0.3: the study ran 0.1",
                 "criterion": "unknown J6", "strategy": "zz not in the study (it ran a, b)",
                 "out not empty": "exists and is not an empty folder"}[case]
     assert expected in err and "Traceback" not in err

@@ -82,7 +82,7 @@ def test_inspect_prints_what_the_page_shows(folder):
         assert line in out.stdout.splitlines(), (line, out.stdout)
     unmapped = run(commands[1].replace(" --map i=u", ""), folder)
     assert unmapped.returncode == 1
-    assert "problem: DisplacementSwitch has no output 'i'" in unmapped.stdout and "its outputs: u" in unmapped.stdout
+    assert "problem: DisplacementSwitch has no output 'i'" in unmapped.stderr and "its outputs: u" in unmapped.stderr
 
 
 def _plans(folder: Path, name: str, overrides: tuple[str, ...] = ()):
@@ -242,7 +242,7 @@ def test_our_constant_current_fmu_is_a_strategy_of_the_case_study(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "expected"), [
-    (["nope.fmu"], "nope.fmu: no such file"),
+    (["nope.fmu"], "nope.fmu: No such file or directory"),
     (["not_an_fmu.fmu"], "not_an_fmu.fmu"),
     (["{fmus}/ShearBuilding.fmu", "--role", "building", "--map", "zz=1"],
      "the building role has no variable 'zz' (its variables: ag, F, x_0"),
@@ -269,9 +269,9 @@ def test_inspect_a_building_in_the_controller_role_is_exit_1(capsys):
     from orchestration.inspect_fmu import main
 
     assert main([str(PROJECT / "fmus" / "ShearBuilding.fmu"), "--role", "controller"]) == 1
-    out = capsys.readouterr().out
-    assert "problem: ShearBuilding has no output 'i' for the current command" in out
-    assert "x_0 (output, m)" in out and "cannot play the controller" in out
+    said = capsys.readouterr()
+    assert "problem: ShearBuilding has no output 'i' for the current command" in said.err
+    assert "x_0 (output, m)" in said.out and "cannot play the controller" in said.err
 
 
 @pytest.mark.parametrize("value", ["''", "' u'", "'u -> x'"])

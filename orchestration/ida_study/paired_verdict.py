@@ -40,13 +40,22 @@ class VerdictError(ValueError):
 def read_results(path: Path) -> list[dict[str, str]]:
     """The rows of an IDA study's results.csv; VerdictError naming the file if it is missing or not one."""
     try:
-        with open(path, newline="") as f:
+        with open(path, newline="", encoding="utf-8") as f:
             rows = list(csv.DictReader(f))
     except OSError as exc:
         raise VerdictError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise VerdictError(f"{path}: not an IDA results file ({type(exc).__name__})") from None
     needed = {"record", "component", "intensity", "strategy", "valid", *CRITERIA}
     if not rows or not needed <= set(rows[0]):
         raise VerdictError(f"{path}: not an IDA results file (needs the columns {', '.join(sorted(needed))})")
+    for line, r in enumerate(rows, 2):
+        try:
+            level = float(r["intensity"])
+        except (TypeError, ValueError):
+            level = math.nan
+        if not (math.isfinite(level) and level > 0):
+            raise VerdictError(f"{path}:{line}: intensity {r['intensity']!r} is not a positive number")
     return rows
 
 

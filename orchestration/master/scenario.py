@@ -143,8 +143,8 @@ class SimulationSpec(_Strict):
         "auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
     )
     output_interval: StrictInt = Field(
-        1, ge=1, description="the results file holds every n-th communication point (and the last); the summary's "
-                             "peaks and statistics still come from every step")
+        1, ge=1, le=MAX_STEPS, description="the results file holds every n-th communication point (and the last); "
+                                           "the summary's peaks and statistics still come from every step")
     output_format: Literal["csv", "parquet"] = Field(
         "csv", description="timeseries.csv (12 significant digits), or timeseries.parquet (float64, zstd)")
 
