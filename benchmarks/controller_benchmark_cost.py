@@ -1,4 +1,4 @@
-"""The controller benchmark's cost (issue 23, part 3): its wall time and parallel efficiency; not a test.
+"""The controller benchmark's cost: its wall time and parallel efficiency; not a test.
 
 ``python benchmarks/controller_benchmark_cost.py [--workers N] [--out DIR]`` runs
 ``orchestration/study.py scenarios/controller_benchmark.yaml`` into a new folder (under a temporary

@@ -739,7 +739,7 @@ def other_tool_cases() -> list[Case]:
     return out
 
 
-# -- issue 26, the engine's part: environment, provenance, the Python API, exit classes, messages ---------
+# -- the engine: environment, provenance, the Python API, exit classes, messages ---------
 
 ENGINE = "26/engine"
 """Prefix of these classes: ``--only 26/engine`` runs them alone."""
@@ -863,7 +863,7 @@ def _api(body: str) -> Callable[[Path], None]:
 
 
 def engine_cases(base: Path, package: Path) -> list[Case]:
-    """Issue 26 for the engine: MRE_COSIM_* values, inputs changed during a run, the Python API's arguments,
+    """The engine: MRE_COSIM_* values, inputs changed during a run, the Python API's arguments,
     problems known before the first step, and messages that say what a file is."""
     out: list[Case] = []
     # 10: environment variables
@@ -1058,7 +1058,7 @@ def engine_cases(base: Path, package: Path) -> list[Case]:
 _MOUNT_LOCK = threading.Lock()
 
 
-# -- issue 26, the study tools' part: bounded waits, stores, numbers, names in bytes, extends ---------------
+# -- the study tools: bounded waits, stores, numbers, names in bytes, extends ---------------
 
 STUDIES = "26/studies"
 """Prefix of these classes: ``--only 26/studies`` runs them alone."""
@@ -1176,7 +1176,7 @@ def _untouched(work: Path, codes: list[int], err: str) -> list[str]:
 
 
 def study_tool_cases(base: Path) -> list[Case]:
-    """study.py, ida.py and tune.py: the scheduler, sizes, stores, numbers, names in bytes, extends (issue 26)."""
+    """study.py, ida.py and tune.py: the scheduler, sizes, stores, numbers, names in bytes, extends."""
     out: list[Case] = []
     study = str(SC / "case_study.yaml")
     silent, http, ssh = _listener(b""), _listener(b"HTTP/1.1 400 Bad Request\r\n\r\n"), _listener(b"SSH-2.0-x\r\n")
@@ -1458,7 +1458,7 @@ def _run_case(case: Case, base: Path, index: int) -> Result:
 
 
 def new_unit_cases() -> list[Case]:
-    """Hostile values of the parameters the new units added (issues 23, 24): yielding storeys, the bounded
+    """Hostile values of the parameters the newer units added: yielding storeys, the bounded
     isolator, the model-based controllers, the OpenSees script, study strategies. Each must be exit 2."""
     building = ["building.hysteresis=plastic", "building.hysteresis=1", "building.hysteresis=BILINEAR",
                 "building.fy_1=.nan", "building.fy_1=-1", "building.fy_1=0", "building.fy_1=.inf",
@@ -1544,7 +1544,7 @@ def _exit_2(work: Path, codes: list[int], err: str) -> list[str]:
     return [] if codes == [2] else [f"exit {codes}, expected 2"]
 
 
-# -- issue 26, what was left: unused values, unlisted strategies, NUL in text, full disks, stuck workers ------------
+# -- what was left: unused values, unlisted strategies, NUL in text, full disks, stuck workers ------------
 
 LEFT = "26/leftovers"
 """Prefix of these classes: ``--only 26/leftovers`` runs them alone."""
@@ -1616,7 +1616,7 @@ def _stuck_cluster(port: int) -> Callable[[Path], None]:
 
 
 def leftover_cases(base: Path) -> list[Case]:
-    """Issue 26, what was left: values set but unused by the chosen law, strategies defined but not listed, a NUL in
+    """What was left: values set but unused by the chosen law, strategies defined but not listed, a NUL in
     any text, writes that fail (RLIMIT_FSIZE, tmpfs), a scheduler whose worker never answers."""
     out: list[Case] = []
     # values the chosen law does not use: checked for their domain, refused when set
@@ -1725,7 +1725,7 @@ def leftover_cases(base: Path) -> list[Case]:
     return out
 
 
-# -- issue 35: names that become paths, caches, user scripts, new-unit designs, the CSV process, units ----------------
+# -- hardening: names that become paths, caches, user scripts, new-unit designs, the CSV process, units ----------------
 
 HARD = "35/"
 _MODEL = SC / "structures" / "dyke_linear.py"
@@ -1877,7 +1877,7 @@ def _csv_child_outcome(work: Path, codes: list[int], err: str) -> list[str]:
 
 def hardening_cases(base: Path) -> list[Case]:
     """Names that become paths, caches that trust what they find, user scripts, new-unit designs found at t = 0,
-    a study refused after the pool started, the CSV process, unit-less outputs (issue 35's classes)."""
+    a study refused after the pool started, the CSV process, unit-less outputs (the hardening classes)."""
     from orchestration.engine_hooks import plan_scenario
     from orchestration.interop.ssp_package import export_ssp
 

@@ -62,10 +62,10 @@ from orchestration.master.session import run_plan  # noqa: E402
 SCENARIOS = PROJECT / "scenarios"
 RECORDS = PROJECT / "scenarios" / "records"
 RUN_PY = PROJECT / "orchestration" / "run.py"
-TARGET_WHOLE = 2.0  # issue #17: the whole Kobe command within 2x the in-process stepping of the same cores
-TARGET_OWN = 1.25  # issue #25: the whole Kobe command within 1.25x its own stepping (the rest under a quarter)
-TARGET_BATCH = 1.15  # issue #25: a study's wall time within 1.15x the sum of its jobs' compute times / workers
-TARGET_IDENTIFY_S = 60.0  # issue #25: the whole identification command within 60 s
+TARGET_WHOLE = 2.0  # target: the whole Kobe command within 2x the in-process stepping of the same cores
+TARGET_OWN = 1.25  # target: the whole Kobe command within 1.25x its own stepping (the rest under a quarter)
+TARGET_BATCH = 1.15  # target: a study's wall time within 1.15x the sum of its jobs' compute times / workers
+TARGET_IDENTIFY_S = 60.0  # target: the whole identification command within 60 s
 STUDIES = ("case_study", "ida_shipped")
 
 

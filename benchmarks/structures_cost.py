@@ -1,4 +1,4 @@
-"""What yielding storeys cost (issue 24): ``python benchmarks/structures_cost.py [--rounds N] [--opensees]``.
+"""What yielding storeys cost: ``python benchmarks/structures_cost.py [--rounds N] [--opensees]``.
 
 Options also: ``--bouc-wen``, ``--write FILE``.
 
@@ -48,7 +48,7 @@ SCENARIOS = PROJECT / "scenarios"
 OPENSEES_FMU = PROJECT / "fmus" / "OpenSeesBuilding.fmu"
 STRUCTURES = SCENARIOS / "structures"
 PASSIVE_OFF = ["controller.mode=passive", "controller.i_passive=0"]
-TARGET = 1.5  # issue 24: bilinear storeys at most 1.5x the linear building's whole Kobe command
+TARGET = 1.5  # the target: bilinear storeys at most 1.5x the linear building's whole Kobe command
 FIGURES = ("cpu", "wall", "loop")
 
 
@@ -138,7 +138,7 @@ def report(rounds: list[dict[str, dict[str, float]]], chosen: list[Variant], pai
     n = len(rounds)
     med = {v.label: {f: statistics.median(r[v.label][f] for r in rounds) for f in FIGURES} for v in chosen}
     lines = [
-        "# Structures: what a nonlinear storey step costs (issue 24)",
+        "# Structures: what a nonlinear storey step costs",
         "",
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}, {platform.platform()}. Load average (1/5/15 min) at the start {load_start}, "

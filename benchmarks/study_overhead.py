@@ -1,4 +1,4 @@
-"""What a study costs beyond its runs: the batch layer's overhead ratio (issue 25), not a test.
+"""What a study costs beyond its runs: the batch layer's overhead ratio, not a test.
 
 ``python benchmarks/study_overhead.py`` runs ``orchestration/study.py scenarios/case_study.yaml`` and
 ``orchestration/ida.py scenarios/ida_shipped.yaml`` (each into a new folder under a temporary folder),

@@ -21,7 +21,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from mre_common.atomic_files import atomic_write_text
-from mre_common.private_cache import fallback_folder, file_sha256, note, remove_entry, trusted_folder
+from mre_common.hashing import file_sha256
+from mre_common.private_cache import fallback_folder, note, remove_entry, trusted_folder
 
 CACHE_ENV = "MRE_COSIM_CACHE"
 """Environment variable naming the cache folder of compiled libraries."""

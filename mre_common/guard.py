@@ -19,19 +19,22 @@ in :mod:`mre_common` so that both layers may use it (``python -m components.buil
 
 from __future__ import annotations
 
-import _signal as signal  # signal.py's C core: signal.py imports enum and builds its enums (tens of ms on a
-import os  # loaded machine), and this module is imported before the Ctrl-C handler exists (quiet_interrupts)
+import os
 import sys
 
-TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (14 ms): a tool imports this module first,
+TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing: a tool imports this module first,
 if TYPE_CHECKING:  # before its Ctrl-C handler is set, so it imports nothing that is not loaded at start-up
+    import signal  # the type checker reads signal's stubs; _signal (its C core) has none
     from collections.abc import Callable, Sequence
+else:  # signal.py's C core: signal.py imports enum and builds its enums, and this module is imported
+    import _signal as signal  # before the Ctrl-C handler exists (quiet_interrupts)
 
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_USAGE = 2
-EXIT_BUG = 3
-EXIT_INTERRUPTED = 130
+# The exit codes of every command-line tool (the one table: orchestration.console and orchestration.cli import it)
+EXIT_OK = 0  # done: the run (or the tool's work) is complete
+EXIT_FAILED = 1  # the work ran and failed (a unit's error, a write failure): partial results are kept
+EXIT_USAGE = 2  # a problem the user can fix (arguments, scenario, configuration): nothing written
+EXIT_BUG = 3  # an internal error: one line names the log file with the traceback
+EXIT_INTERRUPTED = 130  # Ctrl-C or SIGTERM before anything was written
 
 EPILOG_COMMON = ("3 internal error, a bug (one line names the log file with the traceback); 130 interrupted "
                  "before anything was written")

@@ -18,7 +18,6 @@ folder's owner and mode against others.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -26,6 +25,8 @@ import stat
 import sys
 import tempfile
 from pathlib import Path
+
+from mre_common.hashing import file_sha256
 
 MANIFEST = ".mre-cosim-manifest.json"
 """The content manifest of a folder entry: {relative path: [size, SHA-256]} of every regular file."""
@@ -148,7 +149,12 @@ def fallback_folder(path: str | os.PathLike[str], why: str) -> Path:
 
         folder = Path(tempfile.mkdtemp(prefix="mre-cosim-cache-"))
         owner = os.getpid()
-        atexit.register(lambda: os.getpid() == owner and shutil.rmtree(folder, ignore_errors=True))
+
+        def remove() -> None:  # by the process that made it only (a forked child inherits the handler)
+            if os.getpid() == owner:
+                shutil.rmtree(folder, ignore_errors=True)
+
+        atexit.register(remove)
         _FALLBACKS[key] = folder
         note(path, f"{why}; not used (this process caches in {folder} instead)")
     return _FALLBACKS[key]
@@ -160,15 +166,6 @@ def trusted_folder(path: str | os.PathLike[str]) -> Path:
         return private_folder(path)
     except CacheUnusable as exc:
         return fallback_folder(path, str(exc).removeprefix(f"cache {path} ").removeprefix(f"cache {path}: "))
-
-
-def file_sha256(path: str | os.PathLike[str]) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _tree(folder: Path) -> dict[str, list]:

@@ -14,6 +14,8 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from mre_common.guard import EXIT_OK, EXIT_USAGE, set_invoked_as
+
 PROG = "mre-cosim"
 
 TOOLS: dict[str, tuple[str, str]] = {
@@ -34,8 +36,6 @@ TOOLS: dict[str, tuple[str, str]] = {
                                                "(python -m components.build)"),
 }
 """Tool name -> (module whose ``main(argv) -> int`` runs it, one-line description)."""
-
-EXIT_USAGE = 2
 
 
 def usage() -> str:
@@ -59,12 +59,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args and args[0] in ("-h", "--help"):
         print(usage())
-        return 0
+        return EXIT_OK
     if args and args[0] in ("-V", "--version"):
         from orchestration.provenance import package_version
 
         print(f"{PROG} {package_version()}")
-        return 0
+        return EXIT_OK
     if not args or args[0] not in TOOLS:
         what = f"unknown tool {args[0]!r}" if args else "no tool given"
         close = difflib.get_close_matches(args[0], TOOLS, n=1) if args else []
@@ -72,8 +72,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             what += f"; did you mean {close[0]!r}?"
         print(f"{usage()}\n\n{PROG}: error: {what} (choose from {', '.join(TOOLS)})", file=sys.stderr)
         return EXIT_USAGE
-    from mre_common.guard import set_invoked_as
-
     if argv is None:  # the console command: Ctrl-C while the tool's modules import is one line and exit 130
         from orchestration.cli import quiet_interrupts
 

@@ -4,7 +4,11 @@ The engine (:mod:`orchestration.master`) knows FMUs only through their model des
 the applications (command-line tools, studies, the Python API) give it these hooks:
 
 * an FMU path in the project's ``fmus/`` folder is built from ``components/`` when it is
-  missing or older than its sources (:func:`components.build.project_fmus.ensure_fmu`);
+  missing or older than its sources (:func:`components.build.project_fmus.ensure_fmu`); when
+  that folder is not writable (an installed package) the FMU is built and read in the per-user
+  cache folder instead (:func:`mre_common.project_paths.build_location`);
+* a bare scenario name (``kobe``) is the shipped scenario of that name (``scenarios/kobe.yaml``,
+  in the checkout or where ``pip install .`` put it: :data:`mre_common.project_paths.SCENARIOS_DIR`);
 * a ``!record`` file (and a ``!data`` file given as the ground motion's ``record``) is read
   once before the run (a file that is not a record is a scenario error, not a failure at t = 0);
 * the records the project ships (``scenarios/records/``) are on the data search path,
@@ -24,6 +28,9 @@ from pathlib import Path
 
 from components.build.project_fmus import ensure_fmu
 from components.physics.ground_motion_core import RecordError, read_record
+from mre_common.project_paths import PROJECT_DIR as PROJECT_DIR  # re-exported: the applications import it here
+from mre_common.project_paths import RECORDS_DIR, build_location, shipped_scenario
+from mre_common.project_paths import SCENARIOS_DIR as SCENARIOS_DIR
 from orchestration.building_report import REPORT
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.execution import StopRequest
@@ -34,9 +41,6 @@ from orchestration.master.unit import UnitDescription
 from orchestration.master.yaml_source import load_tree
 from orchestration.parameter_domains import parameter_problems
 from orchestration.provenance import provenance
-
-PROJECT_DIR = Path(__file__).resolve().parent.parent  # == orchestration.provenance.PROJECT_DIR
-RECORDS_DIR = PROJECT_DIR / "scenarios" / "records"
 
 
 def check_record(path: Path) -> str | None:
@@ -103,7 +107,19 @@ def resolve_scenario(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), b
 
     ``build=False`` builds no FMU (a missing one is a problem like any other).
     """
+    fmus_where_built(loaded)
     return scripts_as_data_files(resolve(loaded, data_dirs, HOOKS if build else CHECK_ONLY))
+
+
+def fmus_where_built(loaded: LoadedScenario) -> None:
+    """Each unit's FMU in the project's ``fmus/`` folder named by its build location
+    (:func:`mre_common.project_paths.build_location`: the same file in a writable checkout; the per-user
+    cache folder when installed), so that it is built, checked and run there."""
+    for name, spec in list(loaded.scenario.units.items()):
+        path = loaded.fmu_path(name)
+        target = build_location(path)
+        if target != path:
+            loaded.scenario.units[name] = spec.model_copy(update={"fmu": str(target)})
 
 
 def scripts_as_data_files(plan: SystemPlan) -> SystemPlan:
@@ -132,6 +148,7 @@ def scripts_as_data_files(plan: SystemPlan) -> SystemPlan:
 def plan_scenario(path: Path | str, overrides: tuple[str, ...] = (), data_dirs: tuple[Path, ...] = ()) -> SystemPlan:
     """Load and check a scenario file or SSP package (builds project FMUs if needed); raises ScenarioError."""
     check_environment()  # MRE_COSIM_* values that mean nothing: refused before any file is read
+    path = shipped_scenario(str(path)) or path  # `mre-cosim run kobe`: the shipped scenarios/kobe.yaml
     if Path(path).suffix.lower() == ".ssp":
         from orchestration.interop.ssp_package import load_ssp
 

@@ -6,47 +6,27 @@ Written into every run's ``manifest.json`` (through the resolve hooks of
 
 from __future__ import annotations
 
-import subprocess
-import tomllib
 from functools import lru_cache
-from importlib import metadata
-from pathlib import Path
 from typing import Any
 
-PROJECT_DIR = Path(__file__).resolve().parent.parent
-PACKAGE = "mre-cosim"
-
-
-def _git(*args: str) -> str | None:
-    try:
-        done = subprocess.run(["git", *args], cwd=PROJECT_DIR, capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return done.stdout.strip() if done.returncode == 0 else None
-
-
-def package_version() -> str:
-    """The version in ``pyproject.toml`` (the source that runs), else the installed distribution's."""
-    try:
-        with open(PROJECT_DIR / "pyproject.toml", "rb") as fh:
-            return str(tomllib.load(fh)["project"]["version"])
-    except (OSError, KeyError, tomllib.TOMLDecodeError):
-        pass
-    try:
-        return metadata.version(PACKAGE)
-    except metadata.PackageNotFoundError:
-        return "unknown"
+from mre_common.project_paths import DISTRIBUTION as PACKAGE
+from mre_common.project_paths import PROJECT_DIR as PROJECT_DIR  # re-exported (the checkout or site-packages)
+from mre_common.project_paths import git as git  # the one git reader: `git(*args)` in the checkout, or None
+from mre_common.project_paths import package_version as package_version  # re-exported: mre-cosim --version
 
 
 @lru_cache(maxsize=1)
 def provenance() -> dict[str, Any]:
     """Package name and version, git commit of the source and whether its code differs from that commit.
 
-    ``commit`` is None outside a git checkout (an unpacked archive); ``dirty`` is None then.
-    Only ``components/``, ``orchestration/``, ``scenarios/`` and ``pyproject.toml`` count for
-    ``dirty``: run folders and notes in the checkout do not change a result.
+    ``version`` is the installed distribution's (``importlib.metadata``; ``unknown`` when the code runs
+    from a checkout that was never installed). ``commit`` is None outside a git checkout (an unpacked
+    archive, an installed package); ``dirty`` is None then. Only ``components/``, ``orchestration/``,
+    ``mre_common/``, ``scenarios/`` and ``pyproject.toml`` count for ``dirty``: run folders and notes in
+    the checkout do not change a result.
     """
-    commit = _git("rev-parse", "HEAD")
-    status = _git("status", "--porcelain", "--", "components", "orchestration", "scenarios", "pyproject.toml")
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--", "components", "orchestration", "mre_common", "scenarios",
+                  "pyproject.toml")
     return {"package": PACKAGE, "version": package_version(), "commit": commit,
             "dirty": None if commit is None or status is None else bool(status)}

@@ -3,7 +3,7 @@
 A role is what the studies and the report need from a unit, not a set of names: a controller is
 "an output that is the current command [A]" and, optionally, "a parameter that limits it [A]".
 Our FMUs call these ``i`` and ``i_max``; a strategy entry maps them onto another tool's names
-(``current: u``, ``limit: imax``; :mod:`orchestration.case_study.strategies`). The isolator and
+(``current: u``, ``limit: imax``; :mod:`orchestration.building_studies.strategies`). The isolator and
 building roles list the variables the shipped scenarios connect; a foreign unit in those roles is
 wired by the scenario's own connections.
 

@@ -51,14 +51,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def unit_errors(folder: Path, limit: int = UNIT_ERRORS_SHOWN) -> list[str]:
-    """The last ``limit`` distinct error and fatal messages of the units, from the run's manifest."""
-    try:
-        messages = json.loads((folder / "manifest.json").read_text()).get("unit_messages", [])
-    except (OSError, ValueError, AttributeError):
-        return []
-    errors = [m for m in messages if isinstance(m, str) and ("] error: " in m or "] fatal: " in m)]
-    distinct = list(dict.fromkeys(reversed(errors)))[:limit]
+def last_distinct(messages: list[str], limit: int = UNIT_ERRORS_SHOWN) -> list[str]:
+    """The last ``limit`` distinct messages, in the order they came."""
+    distinct = list(dict.fromkeys(reversed(messages)))[:limit]
     return list(reversed(distinct))
 
 
@@ -100,7 +95,7 @@ def _run(argv: list[str] | None) -> int:
     print(*verdict_lines(outcome.summary), sep="\n")
     print(f"run {outcome.result.status}: {outcome.result.error}", file=sys.stderr)
     said = str(outcome.result.error)
-    errors = [m for m in unit_errors(outcome.folder) if m.split(": ", 1)[-1] not in said]
+    errors = [m for m in last_distinct(outcome.unit_errors) if m.split(": ", 1)[-1] not in said]
     if errors and outcome.result.status == "failed":
         print("the units said:", *(f"  {m}" for m in errors), sep="\n", file=sys.stderr)
     print(f"{results_note(outcome.folder)}: {outcome.folder}", file=sys.stderr)
@@ -192,9 +187,8 @@ def exit_without_teardown(code: int) -> None:
 
     Everything a normal exit does for the outside world is done first: the ``atexit`` functions
     (logging's flush, temporary folders' cleanup), Python's and C's buffered output. What is
-    skipped is only the freeing of every module and object and the C libraries' destructors:
-    0.29-0.37 s against 0.02 s after a 10 s Kobe run (from ``main()`` returning to the process's
-    end, on a machine loaded by other work; see docs/performance.md). Where a flush fails
+    skipped is only the freeing of every module and object and the C libraries' destructors, which take
+    far longer than the exit itself after a run (docs/performance.md). Where a flush fails
     (stdout closed, a broken pipe), and under a profiler or a tracer (``python -m cProfile``,
     coverage: they write their data after the script returns), the process exits the usual way.
     """

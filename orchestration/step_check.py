@@ -18,8 +18,8 @@ from typing import Any
 from orchestration.building_report import DEFAULT_STEP_TOLERANCE, step_changes
 from orchestration.master.errors import ScenarioError
 from orchestration.master.resolve import SystemPlan
-from orchestration.master.runfolder import write_json
 from orchestration.master.session import RunOutcome, run_plan
+from orchestration.master.summary import write_summary
 
 
 def controller_unit(plan: SystemPlan) -> str | None:
@@ -99,5 +99,5 @@ def verify_step(scenario: Path, overrides: tuple[str, ...], data_dirs: tuple[Pat
     if reasons:
         summary["invalid_reasons"] = [*summary.get("invalid_reasons", []), *reasons]
         summary["valid"] = False
-    write_json(outcome.folder / "summary.json", summary)
+    write_summary(outcome.folder / "summary.json", summary)
     return section

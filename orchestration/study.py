@@ -33,7 +33,7 @@ def _study(argv: list[str] | None) -> int:
 
 
 def _errors() -> tuple[type[BaseException], ...]:
-    from orchestration.case_study.tuning import NotMonolithic
+    from orchestration.building_studies.in_process_model import NotMonolithic
 
     return (NotMonolithic,)
 

@@ -34,7 +34,7 @@ def _tune(argv: list[str] | None) -> int:
 
 
 def _errors() -> tuple[type[BaseException], ...]:
-    from orchestration.case_study.tuning import NotMonolithic
+    from orchestration.building_studies.in_process_model import NotMonolithic
 
     return NotMonolithic, OSError  # the gains file is written atomically: a failed write leaves nothing
 

@@ -57,9 +57,21 @@ class FakeUnit:
         self.fail_at = fail_at
         self.terminated = 0
         self.initialized = False
+        self.time: float | None = None  # the Unit protocol's: t before a step, t + h after it
+
+    def native_functions(self) -> None:
+        """None: the native executor cannot drive a Python unit."""
+        return None
+
+    def raise_status(self, function: str, status: int) -> None:
+        from orchestration.master.errors import SimulationError
+
+        if status > 1:
+            raise SimulationError(f"{function} returned status {status}", unit=self.name, time=self.time)
 
     def setup(self, start_time: float, stop_time: float) -> None:
         self.calls.append(("setup", self.name, start_time))
+        self.time = start_time
 
     def exit_initialization(self) -> None:
         self.initialized = True
@@ -100,6 +112,7 @@ class FakeUnit:
             raise SimulationError("fake failure", unit=self.name, time=t)
         if self._step_fn is not None:
             self.state = self._step_fn(self.state, dict(self.inputs), t, h)
+        self.time = t + h
 
     def terminate(self) -> None:
         self.terminated += 1

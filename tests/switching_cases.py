@@ -47,7 +47,7 @@ def sosm_gains() -> dict[str, float]:
 
 
 def _strategy(name: str) -> Any:
-    from orchestration.case_study.strategies import builtin_strategies
+    from orchestration.building_studies.strategies import builtin_strategies
 
     return builtin_strategies()[name]
 

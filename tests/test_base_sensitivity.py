@@ -10,9 +10,11 @@ import pytest
 
 from components.physics.monolithic import SystemSetup
 from components.physics.shear_building_core import BuildingParams
+from orchestration.building_studies.in_process_model import system_setup
+from orchestration.building_studies.run_settings import run_overrides
 from orchestration.case_study.base_sensitivity import conclusions
 from orchestration.case_study.case_config import load_study
-from orchestration.case_study.tuning import peak_values, run_overrides, system_setup
+from orchestration.case_study.objective import peak_values
 from orchestration.engine_hooks import plan_scenario
 from orchestration.inprocess import simulate_coupled
 

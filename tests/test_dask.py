@@ -193,8 +193,9 @@ def test_an_unreachable_scheduler_is_refused_quickly():
 
 @pytest.mark.slow
 def test_tuning_fanned_out_on_the_engine_equals_tuning_in_process(pool):
+    from orchestration.building_studies.run_settings import run_overrides
     from orchestration.case_study.case_config import ObjectiveSpec, TuningSpec, load_study
-    from orchestration.case_study.tuning import pool_evaluate, run_overrides, tune
+    from orchestration.case_study.tuning import pool_evaluate, tune
 
     study = load_study(PROJECT / "scenarios" / "case_study.yaml")
     plan = plan_scenario(study.scenario_path("elcentro"), run_overrides(study.spec))

@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 
 from orchestration.api import load_scenario, run
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.in_process_model import system_setup
+from orchestration.building_studies.strategies import strategy_overrides
 from orchestration.case_study.case_config import load_study
 from orchestration.case_study.claims import PINNED_SHARE
-from orchestration.case_study.strategies import strategy_overrides
-from orchestration.case_study.tuning import _simulate, gain_set_overrides, read_gains, read_table, system_setup
+from orchestration.case_study.objective import simulate as _simulate
+from orchestration.case_study.tuning import gain_set_overrides, read_table
 from orchestration.engine_hooks import plan_scenario
 
 from .conftest import PROJECT

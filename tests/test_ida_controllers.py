@@ -22,8 +22,8 @@ import pytest
 import yaml
 from scipy import optimize, stats
 
-from orchestration.case_study.strategies import strategy_overrides
-from orchestration.case_study.tuning import read_gains
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.strategies import strategy_overrides
 from orchestration.ida_study.ida_config import load_ida
 from orchestration.ida_study.ida_plan import prepare_ida
 

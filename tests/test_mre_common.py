@@ -234,3 +234,39 @@ def test_an_own_file_or_link_at_a_cache_name_in_the_temporary_folder_is_replaced
         assert folder.is_dir() and not folder.is_symlink() and (folder.stat().st_mode & 0o777) == 0o700
         assert f"note: cache {tmp_path / name}: was a" in capsys.readouterr().err
     assert list((tmp_path / "target").iterdir()) == []
+
+
+def test_the_file_hasher_is_sha256_in_chunks_and_its_cache_follows_a_rewrite(tmp_path):
+    import hashlib
+
+    from mre_common import hashing
+
+    path = tmp_path / "big.bin"
+    data = os.urandom(hashing.CHUNK * 2 + 17)  # more than one chunk, not a whole number of them
+    path.write_bytes(data)
+    assert hashing.file_sha256(path) == hashing.file_sha256(str(path)) == hashlib.sha256(data).hexdigest()
+    assert hashing.cached_file_sha256(path) == hashlib.sha256(data).hexdigest()
+    path.write_bytes(b"other")  # another size: hashed again, not served from the cache
+    assert hashing.cached_file_sha256(path) == hashlib.sha256(b"other").hexdigest()
+    (tmp_path / "empty").write_bytes(b"")
+    assert hashing.file_sha256(tmp_path / "empty") == hashlib.sha256(b"").hexdigest()
+
+
+def test_the_engine_and_the_batch_layer_use_the_one_hasher():
+    from mre_common import hashing, private_cache
+    from orchestration.batch import portable
+    from orchestration.master import fmu_loading, runfolder
+
+    assert runfolder.sha256 is hashing.file_sha256
+    assert private_cache.file_sha256 is hashing.file_sha256
+    assert fmu_loading._archive_sha256 is hashing.versioned_sha256
+    assert portable.file_sha256 is hashing.cached_file_sha256
+
+
+def test_the_console_and_the_guard_share_one_exit_code_table():
+    from mre_common import guard
+    from orchestration import console
+
+    assert console.EXIT_USAGE is guard.EXIT_USAGE == 2
+    assert (guard.EXIT_OK, guard.EXIT_FAILED, guard.EXIT_BUG, guard.EXIT_INTERRUPTED) == (0, 1, 3, 130)
+    assert console.main(["no-such-tool"]) == guard.EXIT_USAGE

@@ -147,3 +147,20 @@ def test_the_timeseries_writer_writes_what_row_by_row_formatting_writes(tmp_path
     expected = ",".join(["time", *names]) + "\n" + "".join(",".join(_python_g12(r)) + "\n" for r in rows)
     assert (tmp_path / "timeseries.csv").read_bytes() == expected.encode()
     assert not [p.name for p in tmp_path.iterdir() if p.name != "timeseries.csv"]  # no temporary file left
+
+
+def test_every_unit_type_the_engine_creates_has_the_whole_unit_protocol():
+    """What native_stepper calls (time, native_functions, raise_status) is part of the Unit protocol."""
+    from orchestration.master.fmi2_cosim_unit import FmuUnit
+    from orchestration.master.fmi2_me_unit import MeUnit
+    from orchestration.master.fmi3_cosim_unit import Fmu3Unit
+    from orchestration.master.resolve import UnloadableUnit
+    from orchestration.master.unit import Unit
+
+    members = [name for name in vars(Unit) if not name.startswith("_")]
+    assert {"time", "native_functions", "raise_status"} <= set(members)
+    for cls in (FmuUnit, MeUnit, Fmu3Unit, UnloadableUnit):
+        assert [m for m in members if not hasattr(cls, m) and m not in ("name", "description")] == [], cls
+    assert Fmu3Unit.native_functions is not FmuUnit.native_functions  # FMI 3.0: the kernel cannot drive it
+    fake = clock()
+    assert all(hasattr(fake, m) for m in members) and fake.native_functions() is None

@@ -8,10 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from orchestration.case_study.analysis import read_timeseries
+from orchestration.building_studies.in_process_model import NotMonolithic, monolithic_problem, system_setup
+from orchestration.building_studies.run_metrics import read_timeseries
 from orchestration.case_study.case_config import load_study
 from orchestration.case_study.case_run import main as study_main
-from orchestration.case_study.tuning import NotMonolithic, cosimulated_peaks, monolithic_problem, system_setup
+from orchestration.case_study.current_sweep import cosimulated_peaks
 from orchestration.engine_hooks import plan_scenario, run_scenario
 from orchestration.ida_study.ida_config import load_ida
 from orchestration.master.yaml_source import load_tree
@@ -122,7 +123,7 @@ def test_the_sweep_on_the_nominal_plant_is_the_direct_runs_at_each_current(tmp_p
 
 
 def test_a_sweep_current_whose_run_says_it_is_invalid_is_not_ranked(monkeypatch):
-    from orchestration.case_study import tuning
+    from orchestration.case_study import current_sweep as tuning
     from orchestration.case_study.case_config import ObjectiveSpec
 
     def peaks(plan, current):  # the larger the current, the lower J; 3 A's run says it is invalid

@@ -124,6 +124,10 @@ def test_a_failing_unit_stops_the_run_and_keeps_partial_results(tmp_path, failin
     assert expected in str(error)
     if failure == "discard":
         assert "deliberate failure at t = 0.5 s" in str(error)
+        # the outcome carries what the unit said, as the manifest records it
+        assert outcome.unit_errors == ["[saboteur] error: deliberate failure at t = 0.5 s"]
+        manifest = json.loads((outcome.folder / "manifest.json").read_text())
+        assert outcome.unit_errors[0] in manifest["unit_messages"]
     summary = check_partial(outcome.folder, 502)
     assert summary["error"] and "saboteur" in summary["error"]
     for unit in outcome.units:
@@ -419,14 +423,11 @@ def test_timeseries_write_failure_is_not_complete_and_exits_1(tmp_path, monkeypa
 def test_summary_write_failure_leaves_no_complete_summary(tmp_path, monkeypatch):
     from orchestration.engine_hooks import run_scenario
 
-    real = session.write_json
+    def fail_summary(path, data):  # summary.json is written by its record's serialiser (summary.write_summary)
+        assert Path(path).name == "summary.json"
+        _disk_full()
 
-    def fail_summary(path, data):
-        if Path(path).name == "summary.json":
-            _disk_full()
-        real(path, data)
-
-    monkeypatch.setattr(session, "write_json", fail_summary)
+    monkeypatch.setattr(session, "write_summary", fail_summary)
     outcome = run_scenario(ELCENTRO, ("simulation.stop_time=0.05",), out=tmp_path / "run", plots=False)
     assert not outcome.result.complete and "summary.json" in str(outcome.result.error)
     assert not (tmp_path / "run" / "summary.json").exists()

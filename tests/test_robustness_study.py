@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from orchestration.case_study.analysis import read_timeseries
+from orchestration.building_studies.run_metrics import read_timeseries
 from orchestration.case_study.benchmark_criteria import raw_criteria
 from orchestration.case_study.case_jobs import BENCHMARK_OUTPUTS_OVERRIDE
 from orchestration.case_study.case_run import main

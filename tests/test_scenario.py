@@ -321,3 +321,74 @@ def test_string_choices_declared_in_a_description():
     assert declared_choices("'sosm' or 'passive' (constant current)") == ("sosm", "passive")
     assert declared_choices('one of "a", "b" | "c"') == ("a", "b", "c")
     assert declared_choices("the 'sosm' mode") == () and declared_choices("") == ()
+
+
+@pytest.mark.parametrize(("fmi_type", "declared", "start", "value"), [
+    ("Real", "", "0.5", 0.5),
+    ("Real", "Float32", "-1e3", -1000.0),
+    ("Real", "", "INF", float("inf")),
+    ("Integer", "", "42", 42),
+    ("Integer", "Int64", " -7 ", -7),
+    ("Integer", "UInt64", "18446744073709551615", 2**64 - 1),  # exact: never through a float
+    ("Enumeration", "", "2", 2),
+    ("Boolean", "", "true", True),
+    ("Boolean", "", " 1 ", True),  # xs:boolean: white space around the value is not part of it
+    ("Boolean", "", "false", False),
+    ("Boolean", "", "0", False),
+    ("String", "", "fast", "fast"),
+    ("Real", "", "not a number", "not a number"),  # text that does not parse is kept as it is
+    ("Real array", "", "1 2", "1 2"),
+])
+def test_a_declared_start_value_is_read_by_its_declared_type(fmi_type, declared, start, value):
+    from orchestration.master.unit import Variable, start_value
+
+    var = Variable("v", 0, fmi_type, "parameter", "fixed", start=start, declared_type=declared)
+    assert start_value(var) == value and type(start_value(var)) is type(value)
+
+
+def _fmu_with_description(tmp_path, xml: str) -> Path:
+    import zipfile
+
+    path = tmp_path / "m.fmu"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", textwrap.dedent(xml).strip())
+    return path
+
+
+@pytest.mark.parametrize(("body", "expected"), [
+    ('<ModelVariables><ScalarVariable name="x" valueReference="0"><Real/></ScalarVariable></ModelVariables>'
+     '<ModelStructure><Outputs><Unknown index="1"/></Outputs></ModelStructure>', None),
+    ("", "no <ModelVariables> element"),
+    ('<ModelVariables><ScalarVariable valueReference="0"><Real/></ScalarVariable></ModelVariables>',
+     "has no name attribute"),
+    ('<ModelVariables><ScalarVariable name="x" valueReference="a"><Real/></ScalarVariable></ModelVariables>',
+     "valueReference 'a' is not an integer"),
+    ('<ModelVariables><ScalarVariable name="x" valueReference="0"/></ModelVariables>', "has 0 type elements"),
+    ('<ModelVariables><ScalarVariable name="x" valueReference="0"><Real/></ScalarVariable></ModelVariables>'
+     '<ModelStructure><Outputs><Unknown index="2"/></Outputs></ModelStructure>',
+     'index="2"> (line 1) points at no variable (there are 1)'),
+    ('<ModelVariables><ScalarVariable name="x" valueReference="0"><Real/></ScalarVariable></ModelVariables>'
+     '<ModelStructure><Outputs><Unknown index="1" dependencies="1 5"/></Outputs></ModelStructure>',
+     "dependencies '5' is not the index of a variable"),
+    ('<UnitDefinitions><Unit name="m"><BaseUnit m="1.5"/></Unit></UnitDefinitions><ModelVariables/>',
+     "the exponent must be an integer"),
+])
+def test_structure_problems_of_a_model_description_are_named(tmp_path, body, expected):
+    from orchestration.master.fmu_description import structure_problem
+
+    path = _fmu_with_description(tmp_path, f'<fmiModelDescription fmiVersion="2.0">{body}</fmiModelDescription>')
+    found = structure_problem(path)
+    assert (found is None) if expected is None else (found is not None and expected in found), found
+
+
+def test_structure_problems_of_the_root_and_of_fmi3_references(tmp_path):
+    from orchestration.master.fmu_description import structure_problem
+
+    assert "not <fmiModelDescription>" in structure_problem(_fmu_with_description(tmp_path, "<other/>"))
+    assert "FMI 1.0 FMU" in structure_problem(_fmu_with_description(
+        tmp_path, '<fmiModelDescription fmiVersion="1.0"/>'))
+    fmi3 = ('<fmiModelDescription fmiVersion="3.0"><ModelVariables><Float64 name="x" valueReference="7"/>'
+            '</ModelVariables><ModelStructure><Output valueReference="{ref}"/></ModelStructure></fmiModelDescription>')
+    assert structure_problem(_fmu_with_description(tmp_path, fmi3.format(ref=7))) is None
+    text = structure_problem(_fmu_with_description(tmp_path, fmi3.format(ref=8)))
+    assert text is not None and 'valueReference="8"> (line 1) points at no variable' in text and "there are" not in text

@@ -11,9 +11,14 @@ from pathlib import Path
 
 import pytest
 
+from orchestration.building_studies.strategies import (
+    SHIPPED,
+    builtin_strategies,
+    read_strategy_file,
+    strategy_overrides,
+)
 from orchestration.case_study.case_config import load_study
 from orchestration.case_study.case_plan import prepare
-from orchestration.case_study.strategies import SHIPPED, builtin_strategies, read_strategy_file, strategy_overrides
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.master.errors import ScenarioError
 

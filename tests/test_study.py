@@ -17,10 +17,14 @@ import yaml
 from components.physics.sosm_controller_core import SosmGains
 from components.physics.switching_controller_core import SwitchingLaw
 from orchestration.batch.runner import Job, run_jobs
-from orchestration.case_study.analysis import indices, run_metrics
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.in_process_model import system_setup
+from orchestration.building_studies.run_metrics import indices, run_metrics
+from orchestration.building_studies.run_settings import run_overrides
 from orchestration.case_study.case_config import ObjectiveSpec, TuningSpec, load_study
 from orchestration.case_study.case_metrics import PEAK_TABLE_COLUMNS
-from orchestration.case_study.tuning import objective, peak_values, read_gains, run_overrides, system_setup, tune
+from orchestration.case_study.objective import objective, peak_values
+from orchestration.case_study.tuning import tune
 from orchestration.engine_hooks import plan_scenario
 from orchestration.inprocess import simulate_coupled
 

@@ -433,7 +433,8 @@ def test_an_ida_ladder_has_a_bounded_size():
 
 def test_a_resumed_study_extending_a_shipped_one_still_finds_the_shipped_files(tmp_path):
     """--resume rebuilds the study from study.json's config: key_files says again which file wrote each path."""
-    from orchestration.case_study.case_config import LoadedStudy, StudySpec, key_files
+    from orchestration.building_studies.study_file import key_files
+    from orchestration.case_study.case_config import LoadedStudy, StudySpec
 
     f = tmp_path / "study.yaml"
     f.write_text(f"extends: {STUDY}\nname: mine\n")

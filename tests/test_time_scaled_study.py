@@ -7,10 +7,11 @@ import pytest
 
 from components.physics.ground_motion_core import G, read_record
 from orchestration.api import load_scenario, run
+from orchestration.building_studies.in_process_model import system_setup
+from orchestration.building_studies.run_settings import run_overrides
 from orchestration.case_study.case_config import load_study
 from orchestration.case_study.case_records import RecordInfo
 from orchestration.case_study.case_report import ground_reading
-from orchestration.case_study.tuning import run_overrides, system_setup
 from orchestration.engine_hooks import plan_scenario
 
 from .conftest import PROJECT

@@ -87,9 +87,9 @@ def test_inspect_prints_what_the_page_shows(folder):
 
 def _plans(folder: Path, name: str, overrides: tuple[str, ...] = ()):
     """The planned runs of the page's study ``name``: strategy -> the plan of its first record's run."""
+    from orchestration.building_studies.run_settings import run_overrides
     from orchestration.case_study.case_config import load_study
     from orchestration.case_study.case_plan import prepare, run_strategy_overrides
-    from orchestration.case_study.tuning import run_overrides
     from orchestration.engine_hooks import plan_scenario
 
     study = load_study(folder / "my_controller" / name, overrides)
@@ -228,9 +228,9 @@ def test_our_constant_current_fmu_is_a_strategy_of_the_case_study(tmp_path):
                      "strategy_definitions:\n"
                      f"  hold: {{fmu: {PROJECT / 'fmus' / 'ConstantCurrent.fmu'}, parameters: {{current: 1.5}}, "
                      "connections: []}\n")
+    from orchestration.building_studies.run_settings import run_overrides
     from orchestration.case_study.case_config import load_study
     from orchestration.case_study.case_plan import prepare, run_strategy_overrides
-    from orchestration.case_study.tuning import run_overrides
     from orchestration.engine_hooks import plan_scenario
 
     loaded = load_study(study)

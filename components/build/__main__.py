@@ -1,4 +1,4 @@
-"""``python -m components.build``: build every FMU of the project into fmus/ (exit codes: see --help)."""
+"""``python -m components.build``: build every FMU of the project into its FMU folder (--help names it)."""
 
 from mre_common.guard import quiet_interrupts
 

@@ -12,7 +12,8 @@ the same doubles. The modelDescription is completed (units, output dependencies)
 ``-ffp-contract=off`` keeps the compiler from fusing multiply-adds, so the force is
 computed with the same roundings as the Python core (and the same libm ``sinh``).
 
-Usage: ``python -m components.build.c_isolator [--dest fmus] [--force]``.
+Usage: ``python -m components.build.c_isolator [--dest FOLDER] [--force]`` (default folder: the
+project's FMU folder, :func:`mre_common.project_paths.fmu_dir`).
 """
 
 from __future__ import annotations
@@ -129,7 +130,7 @@ def is_stale(fmu: Path) -> bool:
 
 
 def is_c_isolator(path: Path) -> bool:
-    """True for the project's own ``fmus/MreIsolatorC.fmu`` (the one the master may build)."""
+    """True for the project's own ``MreIsolatorC.fmu`` in the build folder (the one the master may build)."""
     path = Path(path).resolve()
     return path.name == C_FMU_NAME and path.parent == DEFAULT_FMU_DIR.resolve()
 
@@ -247,7 +248,7 @@ def ensure_c_isolator(dest: Path = DEFAULT_FMU_DIR, force: bool = False) -> Path
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Build the plain-C MRE isolator FMU.")
-    parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
+    parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help=f"output folder (default {DEFAULT_FMU_DIR})")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     args = parser.parse_args(argv)
     print(ensure_c_isolator(args.dest, args.force))

@@ -8,11 +8,12 @@ whose dependencies come from ``fmi_dependencies``. The plain-C isolator's build 
 
 from __future__ import annotations
 
-from pathlib import Path
 from xml.etree import ElementTree as ET
 
-PROJECT_DIR = Path(__file__).resolve().parents[2]
-DEFAULT_FMU_DIR = PROJECT_DIR / "fmus"
+from mre_common.project_paths import PROJECT_DIR as PROJECT_DIR  # re-exported: the checkout or site-packages
+from mre_common.project_paths import fmu_dir
+
+DEFAULT_FMU_DIR = fmu_dir()  # the checkout's fmus/ when writable, else the per-user cache (mre_common.project_paths)
 
 
 class BuildError(RuntimeError):
@@ -42,7 +43,7 @@ SI_UNITS: dict[str, dict[str, int] | None] = {
     "A/s": {"A": 1, "s": -1},
     "m0.5/s1.5": None,  # m^0.5 s^-1.5: SOSM gain theta
     "A.s0.5/m0.5": None,  # A s^0.5 m^-0.5: SOSM gain zeta
-    # model-based controllers (issue 23): frequencies, H2 weights and white-noise intensities
+    # model-based controllers: frequencies, H2 weights and white-noise intensities
     "Hz": {"s": -1},
     "1/m2": {"m": -2},
     "s2/m2": {"m": -2, "s": 2},
@@ -85,10 +86,28 @@ def complete_model_description(
     unknown = set(units) - set(index)
     if unknown:
         raise BuildError(f"fmi_units names unknown variables: {sorted(unknown)}")
+    used = _set_reals(index, units, starts or {})
+    if used:
+        root.append(_unit_definitions(used))
+    old = root.find("ModelStructure")
+    if old is not None:
+        root.remove(old)
+    root.append(_model_structure(index, deps))
+    root[:] = sorted(root, key=lambda e: _ELEMENT_ORDER.index(e.tag))
+    for element in root.iter():
+        element.tail = None
+        if element.text is not None and not element.text.strip():
+            element.text = None
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def _set_reals(index: dict[str, tuple[int, ET.Element]], units: dict[str, str], starts: dict[str, float]) -> set[str]:
+    """Full-precision start values and the units of the Real variables; the units used."""
     used = set()
     for name, (_, sv) in index.items():
         real = sv.find("Real")
-        if real is not None and starts and name in starts and real.get("start") is not None:
+        if real is not None and name in starts and real.get("start") is not None:
             real.set("start", repr(starts[name]))
         if real is None or name not in units:
             continue
@@ -97,20 +116,22 @@ def complete_model_description(
             raise BuildError(f"variable {name}: unit {unit!r} is not in components.build.model_description.SI_UNITS")
         real.set("unit", unit)
         used.add(unit)
+    return used
 
+
+def _unit_definitions(used: set[str]) -> ET.Element:
     unit_defs = ET.Element("UnitDefinitions")
     for unit in sorted(used):
         node = ET.SubElement(unit_defs, "Unit", name=unit)
         exponents = SI_UNITS[unit]
         if exponents is not None:
             ET.SubElement(node, "BaseUnit", {k: str(v) for k, v in exponents.items()})
-    if used:
-        root.append(unit_defs)
+    return unit_defs
 
-    old = root.find("ModelStructure")
-    if old is not None:
-        root.remove(old)
-    structure = ET.SubElement(root, "ModelStructure")
+
+def _model_structure(index: dict[str, tuple[int, ET.Element]], deps: dict[str, tuple[str, ...]]) -> ET.Element:
+    """The outputs with their declared dependencies on inputs, and the initial unknowns."""
+    structure = ET.Element("ModelStructure")
     outputs = [(k, name) for name, (k, sv) in index.items() if sv.get("causality") == "output"]
     inputs = {name for name, (_, sv) in index.items() if sv.get("causality") == "input"}
     bad = {o: d for o, d in deps.items() if o not in dict((n, k) for k, n in outputs) or set(d) - inputs}
@@ -132,10 +153,4 @@ def complete_model_description(
         init_node = ET.SubElement(structure, "InitialUnknowns")
         for k in sorted(initial):
             ET.SubElement(init_node, "Unknown", {"index": str(k)})
-    root[:] = sorted(root, key=lambda e: _ELEMENT_ORDER.index(e.tag))
-    for element in root.iter():
-        element.tail = None
-        if element.text is not None and not element.text.strip():
-            element.text = None
-    ET.indent(root)
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+    return structure

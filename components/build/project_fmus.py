@@ -1,8 +1,11 @@
 """Every FMU the project builds: build all of them, or one on demand before a run.
 
-``python -m components.build [--dest fmus] [--force] [--storeys N ...]`` builds all FMUs;
+``python -m components.build [--dest FOLDER] [--force] [--storeys N ...]`` builds all FMUs;
 :func:`ensure_fmu` is the hook the command-line tools give the master, so that a scenario
 naming one of the project's FMUs in ``fmus/`` gets it built when it is missing or stale.
+The folder is :func:`mre_common.project_paths.fmu_dir`: the checkout's ``fmus/`` when it is
+writable, else (an installed package) ``fmus/<version>`` in the per-user cache folder
+(``$MRE_COSIM_CACHE``, default ``~/.cache/mre-cosim``).
 Exit codes of the command: 0 built (or up to date); 1 a build failed (e.g. no C
 compiler); 2 bad arguments or an unusable ``--dest`` (nothing written); 3 internal error
 (a bug; the traceback is in the log file named); 130 interrupted.
@@ -70,8 +73,8 @@ def _usable_dest(dest: Path) -> None:
 
 def _build(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="python -m components.build",
-                                     description="Build the project's FMUs into fmus/.", epilog=EPILOG)
-    parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default fmus/)")
+                                     description=f"Build the project's FMUs into {DEFAULT_FMU_DIR}.", epilog=EPILOG)
+    parser.add_argument("--dest", type=Path, default=DEFAULT_FMU_DIR, help=f"output folder (default {DEFAULT_FMU_DIR})")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.add_argument(
         "--storeys", type=int, nargs="*", default=[],

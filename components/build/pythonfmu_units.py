@@ -366,7 +366,7 @@ def build(source: FmuSource, dest: Path) -> Path:
 
 
 def known_fmu(path: Path) -> FmuSource | None:
-    """The source of an FMU path in the project's fmus/ folder, if the project builds it."""
+    """The source of an FMU path in the project's FMU folder (``DEFAULT_FMU_DIR``), if the project builds it."""
     path = Path(path).resolve()
     if path.parent != DEFAULT_FMU_DIR.resolve():
         return None

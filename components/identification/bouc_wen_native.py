@@ -131,7 +131,7 @@ def _numpy_states(dx: np.ndarray, m: np.ndarray, b, g, delta: float, e, bound) -
     return out
 
 
-def path_states(
+def path_states(  # noqa: PLR0913 - the law's parameter arrays and the integrator's limits, per call of a hot kernel
     x: np.ndarray,
     beta,
     gamma,

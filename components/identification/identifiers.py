@@ -71,21 +71,22 @@ class IdentResult:
         return self.identifier.split("-")[0]
 
 
-def _finish(
-    identifier: str,
-    data: FitData,
-    params: dict[str, float],
-    pred: np.ndarray,
-    seconds: float,
-    settled: tuple[bool, str],
-    acceptance: Acceptance,
-    history=None,
-    path=None,
-    extra=None,
-) -> IdentResult:
+@dataclass(frozen=True)
+class _Run:
+    """How an identifier's optimisation went: its time [s], whether it settled (and why not), its trace."""
+
+    seconds: float
+    settled: tuple[bool, str]
+    history: np.ndarray | None = None
+    path: np.ndarray | None = None
+    extra: dict[str, float] | None = None
+
+
+def _finish(identifier: str, data: FitData, params: dict[str, float], pred: np.ndarray, run: _Run,
+            acceptance: Acceptance) -> IdentResult:
     err = float(np.sqrt(np.mean((data.F - pred) ** 2)))
     nrmse = err / data.force_rms if data.force_rms > 0 else float("inf")
-    ok, reason = settled
+    ok, reason = run.settled
     if ok and not (np.isfinite(err) and nrmse <= acceptance.max_nrmse):
         ok, reason = (
             False,
@@ -100,23 +101,24 @@ def _finish(
         params,
         err,
         nrmse,
-        seconds,
+        run.seconds,
         ok,
         reason,
-        history,
-        path,
+        run.history,
+        run.path,
         data.noise_rms,
-        dict(extra or {}),
+        dict(run.extra or {}),
     )
 
 
 def _run_ffoa(objective, typical: list[float], rng: np.random.Generator, settings: FFOASettings | None,
               acceptance: Acceptance):
-    """(FFOA result, optimisation seconds, (settled, reason)) for one objective."""
+    """(FFOA result, how the run went: optimisation seconds, (settled, reason), trace) for one objective."""
     t0 = time.perf_counter()
     res = ffoa_minimize(objective, typical, rng, settings)
     seconds = time.perf_counter() - t0
-    return res, seconds, judge_convergence(res.history, acceptance.window, acceptance.rel_tol)
+    settled = judge_convergence(res.history, acceptance.window, acceptance.rel_tol)
+    return res, _Run(seconds, settled, res.history, res.path)
 
 
 def identify_hyperbolic_ffoa(
@@ -127,11 +129,10 @@ def identify_hyperbolic_ffoa(
 ) -> IdentResult:
     """Hyperbolic model by FFOA (paper). Run time includes only the optimisation."""
     acceptance = acceptance or Acceptance()
-    res, seconds, settled = _run_ffoa(hyperbolic_objective(data), [HYPERBOLIC_TYPICAL[p] for p in HYPERBOLIC_PARAMS],
-                                      rng, settings, acceptance)
+    res, run = _run_ffoa(hyperbolic_objective(data), [HYPERBOLIC_TYPICAL[p] for p in HYPERBOLIC_PARAMS],
+                         rng, settings, acceptance)
     params = {**dict(zip(HYPERBOLIC_PARAMS, map(float, res.best), strict=True)), "F0": data.F0}
-    return _finish("hyperbolic-ffoa", data, params, hyperbolic_predict(data, params), seconds, settled, acceptance,
-                   res.history, res.path)
+    return _finish("hyperbolic-ffoa", data, params, hyperbolic_predict(data, params), run, acceptance)
 
 
 def identify_bouc_wen_ffoa(
@@ -142,15 +143,15 @@ def identify_bouc_wen_ffoa(
 ) -> IdentResult:
     """Bouc-Wen model (delta = 1/mm) by FFOA (paper)."""
     acceptance = acceptance or Acceptance()
-    res, seconds, settled = _run_ffoa(bouc_wen_objective(data), [BOUC_WEN_TYPICAL[p] for p in BOUC_WEN_PARAMS],
-                                      rng, settings, acceptance)
+    res, run = _run_ffoa(bouc_wen_objective(data), [BOUC_WEN_TYPICAL[p] for p in BOUC_WEN_PARAMS],
+                         rng, settings, acceptance)
     params = {
         **dict(zip(BOUC_WEN_PARAMS, map(float, res.best), strict=True)),
         "delta": BW_DELTA_MM,
         "F0": data.F0,
     }
     pred = bouc_wen_predict(data, params) if np.all(np.isfinite(res.best)) else np.full_like(data.F, np.nan)
-    return _finish("bouc_wen-ffoa", data, params, pred, seconds, settled, acceptance, res.history, res.path)
+    return _finish("bouc_wen-ffoa", data, params, pred, run, acceptance)
 
 
 def identify_structured(data: FitData, acceptance: Acceptance | None = None, **kwargs) -> IdentResult:
@@ -165,8 +166,6 @@ def identify_structured(data: FitData, acceptance: Acceptance | None = None, **k
         data,
         params,
         hyperbolic_predict(data, params),
-        seconds,
-        (fit.ok, fit.reason),
+        _Run(seconds, (fit.ok, fit.reason), extra={"evaluations": float(fit.evaluations)}),
         acceptance,
-        extra={"evaluations": float(fit.evaluations)},
     )

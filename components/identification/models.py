@@ -184,7 +184,7 @@ def hyperbolic_objective(data: FitData):
 # ------------------------------------------------------------------- Bouc-Wen
 
 
-def bouc_wen_window_states(
+def bouc_wen_window_states(  # noqa: PLR0913 - the law's parameter arrays and integrator limits; per objective call
     data: FitData,
     beta,
     gamma,

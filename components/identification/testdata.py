@@ -271,25 +271,33 @@ def hyperbolic_force_mm(x, v, c0, k0, alpha, beta, F0=0.0):
     return c0 * v + k0 * x + alpha * np.sinh(beta * x) + F0
 
 
-def synthetic_record(
-    condition: Condition,
-    repeat: int,
-    rng: np.random.Generator,
-    noise: NoiseModel,
-    model: str = "hyperbolic",
-    fs_hz: float = 256.0,
-    cycles: int = 10,
-    F0_n: float = 0.0,
-    include_velocity: bool = False,
-    bouc_wen: BoucWenCurrentModel | None = None,
-) -> ShakeRecord:
-    """One synthetic run: x = A sin(2 pi f t) from t = 0, force from the true model plus noise.
+@dataclass(frozen=True)
+class SyntheticSettings:
+    """How synthetic runs are made: their noise, the true model and the record's sampling.
 
     ``model="hyperbolic"``: Eq. (3)-(4) with the Table 1 parameters of the condition.
     ``model="bouc_wen"``: Eq. (1)-(2) with ``bouc_wen`` evaluated at the condition's current
-    (model-form error test). The exact velocity drives the true force; the file carries
-    velocity only if ``include_velocity``.
+    (model-form error test). ``fs_hz`` sampling rate, ``cycles`` of the sine, ``F0_n`` force
+    offset [N]; the file carries velocity only if ``include_velocity``.
     """
+
+    noise: NoiseModel
+    model: str = "hyperbolic"
+    fs_hz: float = 256.0
+    cycles: int = 10
+    F0_n: float = 0.0
+    include_velocity: bool = False
+    bouc_wen: BoucWenCurrentModel | None = None
+
+
+def synthetic_record(condition: Condition, repeat: int, rng: np.random.Generator,
+                     settings: SyntheticSettings) -> ShakeRecord:
+    """One synthetic run: x = A sin(2 pi f t) from t = 0, force from the true model (``settings``) plus noise.
+
+    The exact velocity drives the true force.
+    """
+    noise, model, fs_hz, cycles, F0_n = settings.noise, settings.model, settings.fs_hz, settings.cycles, settings.F0_n
+    include_velocity, bouc_wen = settings.include_velocity, settings.bouc_wen
     f, a, i = condition
     if cycles < 2:
         raise ValueError("synthetic cycles must be >= 2")
@@ -348,14 +356,16 @@ def generate_synthetic(
     """Synthetic runs over ``conditions`` x ``repeats``; reproducible for a given seed.
 
     Each run draws from its own generator seeded by (seed, condition index, repeat), so
-    a run does not change when other conditions are added or removed.
+    a run does not change when other conditions are added or removed. ``kwargs``: the other
+    fields of :class:`SyntheticSettings`.
     """
+    settings = SyntheticSettings(noise, **kwargs)
     records = []
     for cond in conditions:
         index = TEST_MATRIX.index(cond)
         for r in range(1, repeats + 1):
             rng = np.random.default_rng([seed, index, r])
-            records.append(synthetic_record(cond, r, rng, noise, **kwargs))
+            records.append(synthetic_record(cond, r, rng, settings))
     return records
 
 

@@ -176,7 +176,9 @@ def _advance(y, dx, beta, gamma, delta, n, m: int, bound):
     return y
 
 
-def bouc_wen_advance(y, dx, beta, gamma, delta, n, dx_max: float, lam_dx_max: float = 0.5, cap: int = 64):
+def bouc_wen_advance(  # noqa: PLR0913 - Bouc-Wen's own parameters, broadcast; the FMU calls it every step
+    y, dx, beta, gamma, delta, n, dx_max: float, lam_dx_max: float = 0.5, cap: int = 64
+):
     """State y after a displacement increment dx, in :func:`substeps` equal sub-steps.
 
     All arguments broadcast; the sub-step count is the largest one over the batch.
@@ -185,7 +187,7 @@ def bouc_wen_advance(y, dx, beta, gamma, delta, n, dx_max: float, lam_dx_max: fl
     return _advance(y, dx, beta, gamma, delta, n, m, envelope(beta, gamma, delta, n))
 
 
-def bouc_wen_states(
+def bouc_wen_states(  # noqa: PLR0913 - Bouc-Wen's own parameters, broadcast over parameter sets (hot kernel)
     x, beta, gamma, delta, n, dx_max: float, y0=0.0, lam_dx_max: float = 0.5, cap: int = 64
 ) -> np.ndarray:
     """Hysteretic state y at every sample of the displacement history x (last axis = time).

@@ -36,8 +36,8 @@ Two laws turn f_c into a current in [0, i_max]:
   that does), else
   the grid's best point is refined by golden-section search of |F - f_c| between its
   neighbours. This uses the true shape of F(i), hence the true sign of dF/di. (Plain
-  Python rather than scipy.optimize: it runs every step, and scipy's call overhead was
-  3 ms a step.)
+  Python rather than scipy.optimize: it runs every step, where scipy's per-call overhead
+  would cost more than the search.)
 
 Units: x [m], v [m/s], F and f_c [N], i [A], accelerations [m/s^2].
 """

@@ -1,4 +1,4 @@
-"""The controllers' model of the isolated building, and the designs on it (issue 23).
+"""The controllers' model of the isolated building, and the designs on it.
 
 Shared by the model-based semi-active current controllers (clipped-optimal, Lyapunov and
 frequency control): each of their FMUs carries this module beside its own law.

@@ -1,6 +1,6 @@
 """Measurement channels between a plant and its controller: seeded Gaussian noise and a delay.
 
-A robustness variant of the controller benchmark (issue 23, part 4) runs a controller on
+A robustness variant of the controller benchmark runs a controller on
 measurements that are not the plant's exact values. Each channel passes one signal through:
 
     y_k(t_n) = u_k(t_{n-d}) + rms_k * z_k,n,    z_k,n ~ N(0, 1) independent, seeded,

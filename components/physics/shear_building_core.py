@@ -586,19 +586,27 @@ class StoreyLaws:
         if self.hysteresis not in HYSTERESIS_LAWS:
             raise ParameterError("hysteresis", f"{self.hysteresis!r} is not one of "
                                  f"{', '.join(repr(h) for h in HYSTERESIS_LAWS)}")
-        n = params.n_storeys
         if self.p_delta:
-            if len(self.h) != n:
-                raise ParameterError("h_1", f"P-Delta needs one storey height per storey ({n}), got {len(self.h)}")
-            for j in range(1, n + 1):
-                if not (math.isfinite(self.h[j - 1]) and self.h[j - 1] > 0.0):
-                    raise ParameterError(f"h_{j}", f"storey height {self.h[j - 1]!r} m must be > 0 for P-Delta")
-            for j, kg in enumerate(self.geometric_stiffness(params), start=1):
-                if not params.k[j] + kg > 0.0:
-                    raise ParameterError(f"h_{j}", f"P-Delta: the weight above storey {j} over its height "
-                                         f"({-kg:.4g} N/m) is not below its stiffness k_{j} = {params.k[j]:.4g} N/m")
-        if self.hysteresis == "linear":
-            return
+            self._check_p_delta(params)
+        if self.hysteresis != "linear":
+            self._check_yielding(params)
+
+    def _check_p_delta(self, params: BuildingParams) -> None:
+        """The storey heights, and each storey stiffer than the weight above it over its height."""
+        n = params.n_storeys
+        if len(self.h) != n:
+            raise ParameterError("h_1", f"P-Delta needs one storey height per storey ({n}), got {len(self.h)}")
+        for j in range(1, n + 1):
+            if not (math.isfinite(self.h[j - 1]) and self.h[j - 1] > 0.0):
+                raise ParameterError(f"h_{j}", f"storey height {self.h[j - 1]!r} m must be > 0 for P-Delta")
+        for j, kg in enumerate(self.geometric_stiffness(params), start=1):
+            if not params.k[j] + kg > 0.0:
+                raise ParameterError(f"h_{j}", f"P-Delta: the weight above storey {j} over its height "
+                                     f"({-kg:.4g} N/m) is not below its stiffness k_{j} = {params.k[j]:.4g} N/m")
+
+    def _check_yielding(self, params: BuildingParams) -> None:
+        """The storey laws' parameters (hysteresis 'bilinear' or 'bouc-wen') and the sub-steps."""
+        n = params.n_storeys
         for name, values in (("fy", self.fy), ("b", self.b)) + ((("n", self.n),) if self.hysteresis == "bouc-wen"
                                                                   else ()):
             if len(values) != n:

@@ -70,8 +70,10 @@ class SosmConditions:
     zeta_theta_holds: bool
 
 
-def sosm_conditions(t: np.ndarray, x: np.ndarray, v: np.ndarray, a: np.ndarray, i: np.ndarray, gains, model,
-                    m_b: float, n_isolators: int = 2) -> SosmConditions:
+def sosm_conditions(  # noqa: PLR0913 - a run's five signals side by side, as Eq. (34)-(36) use them
+    t: np.ndarray, x: np.ndarray, v: np.ndarray, a: np.ndarray, i: np.ndarray, gains, model, m_b: float,
+    n_isolators: int = 2,
+) -> SosmConditions:
     """tau, v_m, v_M along a run and whether the paper's gain conditions hold with them.
 
     ``gains`` has lam, rho, zeta, theta (``sosm_controller_core.SosmGains``).

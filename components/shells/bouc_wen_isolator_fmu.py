@@ -36,6 +36,7 @@ import copy
 import math
 
 import dyke_building
+import fast_exchange
 import mre_isolator_core
 import shared_copies
 from bouc_wen_core import (
@@ -46,6 +47,7 @@ from bouc_wen_core import (
     bouc_wen_advance,
     device_problem,
 )
+from fast_exchange import FastExchange
 from mre_isolator_core import (
     BEYOND_RANGE,
     CURRENT_MAX_A,
@@ -58,14 +60,14 @@ from mre_isolator_core import (
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-FMU_CORE_MODULES = ("bouc_wen_core", "mre_isolator_core", "dyke_building", "shared_copies")
+FMU_CORE_MODULES = ("bouc_wen_core", "mre_isolator_core", "dyke_building", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11 (bouc_wen_core uses numpy)
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 _COEFFICIENTS = COEFFICIENT_DOCS
 
 
-class BoucWenIsolator(Fmi2Slave):
+class BoucWenIsolator(FastExchange, Fmi2Slave):
     """MRE base isolator, current-dependent Bouc-Wen model (SI units), with state y."""
 
     description = "MRE base isolator, Bouc-Wen: F = n*(k(i) x + c(i) v + alpha(i) y + F0), y from Eq. (2)"
@@ -140,6 +142,9 @@ class BoucWenIsolator(Fmi2Slave):
                                       "('stop': with the stop at x_limit)", **par))
         self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
         self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
+        # The master exchanges the same value references every step: fast paths for them (fast_exchange).
+        self.exchange_fast(inputs=("x", "v", "i"), outputs=("F",))
+
 
     def _current(self) -> float:
         return min(max(self.i, 0.0), self.i_max)
@@ -154,10 +159,12 @@ class BoucWenIsolator(Fmi2Slave):
             force += stop_contact(self.x, self.v, self.x_limit, self.k_stop, self.c_stop)
         return force
 
+    _exchanged_value = _force  # the fast output (fast_exchange)
+
     def exit_initialization_mode(self):
         # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
-        # another FMU's copy of the shared law module with other code: refused (shared_copies)
-        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        # another FMU's copy of a shared module (the law, the fast paths) with other code: refused (shared_copies)
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building, fast_exchange), self.resources)
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
             return

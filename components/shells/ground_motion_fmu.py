@@ -13,16 +13,19 @@ from __future__ import annotations
 
 import copy
 
+import fast_exchange
+import shared_copies
+from fast_exchange import FastExchange
 from ground_motion_core import GroundMotion, RecordError, read_record
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Status
 
-FMU_CORE_MODULES = ("ground_motion_core",)
+FMU_CORE_MODULES = ("ground_motion_core", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy",)  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
-class GroundMotionSource(Fmi2Slave):
+class GroundMotionSource(FastExchange, Fmi2Slave):
     """Plays a ground-acceleration record."""
 
     description = "Ground-acceleration record player (linear interpolation, zero after the end)"
@@ -55,18 +58,16 @@ class GroundMotionSource(Fmi2Slave):
             Real("ag", description="ground acceleration", causality=Fmi2Causality.output,
                  variability=Fmi2Variability.continuous, getter=self._acceleration)
         )
-        # The master reads ag every step: a fast path for exactly that request.
-        self._ag_only = [next(v.value_reference for v in self.vars.values() if v.name == "ag")]
+        # The master reads ag every step: a fast path for it (fast_exchange).
+        self.exchange_fast(outputs=("ag",))
 
-    def get_real(self, vrs):
-        if vrs == self._ag_only:
-            return [self._acceleration()]
-        return super().get_real(vrs)
 
     def _acceleration(self) -> float:
         if self._initializing:
             self._load()  # parameters may still change in initialization mode
         return 0.0 if self._motion is None else self._motion.acceleration(self._time)
+
+    _exchanged_value = _acceleration  # the fast output (fast_exchange)
 
     def setup_experiment(self, start_time, stop_time, tolerance):
         self._time = start_time
@@ -100,6 +101,11 @@ class GroundMotionSource(Fmi2Slave):
     def exit_initialization_mode(self):
         self._load()
         self._initializing = False
+        # another FMU's copy of the shared fast paths with other code: refused (shared_copies), the first step fails
+        problem = shared_copies.copy_problem((fast_exchange,), self.resources)
+        if problem:
+            self._failed = problem
+            self.log(problem, Fmi2Status.error)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:

@@ -21,8 +21,10 @@ import copy
 import math
 
 import dyke_building
+import fast_exchange
 import mre_isolator_core
 import shared_copies
+from fast_exchange import FastExchange
 from mre_isolator_core import (
     BEYOND_RANGE,
     COEFFICIENT_DOCS,
@@ -39,14 +41,14 @@ from mre_isolator_core import (
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-FMU_CORE_MODULES = ("mre_isolator_core", "dyke_building", "shared_copies")
+FMU_CORE_MODULES = ("mre_isolator_core", "dyke_building", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 _COEFFICIENTS = COEFFICIENT_DOCS
 
 
-class MreIsolator(Fmi2Slave):
+class MreIsolator(FastExchange, Fmi2Slave):
     """MRE base isolator, generalized current-dependent hyperbolic model (SI units)."""
 
     description = "MRE base isolator: F = n*(c0(i) v + k0(i) x + alpha(i) sinh(beta(i) x) + F0)"
@@ -110,11 +112,8 @@ class MreIsolator(Fmi2Slave):
         self.register_variable(String("beyond_range", description=f"{choices}: the law beyond x_identified", **par))
         self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
         self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
-        # The master exchanges the same value references every step: fast paths for them.
-        vr = {v.name: v.value_reference for v in self.vars.values()}
-        self._input_attrs = {vr["x"]: "x", vr["v"]: "v", vr["i"]: "i"}
-        self._xvi = [vr["x"], vr["v"], vr["i"]]
-        self._F_only = [vr["F"]]
+        # The master exchanges the same value references every step: fast paths for them (fast_exchange).
+        self.exchange_fast(inputs=("x", "v", "i"), outputs=("F",))
 
     def _current(self) -> float:
         return min(max(self.i, 0.0), self.i_max)
@@ -139,11 +138,13 @@ class MreIsolator(Fmi2Slave):
         except ValueError:
             return math.nan  # reported when initialization ends
 
+    _exchanged_value = _force  # the fast output (fast_exchange)
+
     def exit_initialization_mode(self):
         # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
         self._initialized = False
         self._law = None
-        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building, fast_exchange), self.resources)
         if self._failed:
             self.log(self._failed, Fmi2Status.error)
             return
@@ -158,21 +159,6 @@ class MreIsolator(Fmi2Slave):
         self._initialized = True
         self._law = law
 
-    def set_real(self, vrs, values):
-        if vrs == self._xvi:
-            self.x, self.v, self.i = values
-            return
-        attrs = self._input_attrs
-        if all(vr in attrs for vr in vrs):
-            for vr, value in zip(vrs, values, strict=True):
-                setattr(self, attrs[vr], value)
-            return
-        super().set_real(vrs, values)
-
-    def get_real(self, vrs):
-        if vrs == self._F_only:
-            return [self._force()]
-        return super().get_real(vrs)
 
     def _beyond_text(self) -> str:
         if self.beyond_range == "extrapolate":

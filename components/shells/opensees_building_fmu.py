@@ -24,7 +24,6 @@ The number of storeys is fixed at build time (``N_STOREYS``; the build renders v
 from __future__ import annotations
 
 import math
-import operator
 import sys
 from pathlib import Path
 
@@ -32,19 +31,22 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Intege
 from pythonfmu.enums import Fmi2Status
 
 try:
+    import fast_exchange
     import opensees_building_core as core
+    import shared_copies
+    from fast_exchange import FastExchange
 except ImportError as exc:  # the host's Python lacks a package: say which (the build's logging shim shows it)
     raise ImportError(f"the OpenSeesBuilding unit needs the Python package numpy in the host's "
                       f"interpreter ({sys.executable}): {exc}") from exc
 
 N_STOREYS = 3
-FMU_CORE_MODULES = ("opensees_building_core",)
+FMU_CORE_MODULES = ("opensees_building_core", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "openseespy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 FMU_ONCE_PER_PROCESS = True  # OpenSees keeps one model per process: canBeInstantiatedOnlyOncePerProcess
 
 
-class OpenSeesBuilding(Fmi2Slave):
+class OpenSeesBuilding(FastExchange, Fmi2Slave):
     """A building on a base floor modelled by an OpenSeesPy script, stepped by OpenSees' transient analysis."""
 
     description = "Building on a base floor modelled in OpenSees (OpenSeesPy script; Newmark transient analysis)"
@@ -67,7 +69,6 @@ class OpenSeesBuilding(Fmi2Slave):
         self._run_failed = ""  # a step failed: the model is left mid-step, no further steps
         self._cache_key: tuple | None = None
         self._values: list[float] = []
-        self._output_index: dict[int, int] = {}
 
         inp = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
         par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
@@ -95,16 +96,14 @@ class OpenSeesBuilding(Fmi2Slave):
             + [(f"shear_{j}", "N", f"shear force in storey {j} (inertia of the floors above)") for j in storeys]
         )
         for index, (name, unit, text) in enumerate(outputs):
-            var = Real(name, description=text, causality=Fmi2Causality.output,
-                       variability=Fmi2Variability.continuous, getter=lambda index=index: self._outputs()[index])
-            self.register_variable(var)
-            self._output_index[var.value_reference] = index
+            self.register_variable(Real(name, description=text, causality=Fmi2Causality.output,
+                                        variability=Fmi2Variability.continuous,
+                                        getter=lambda index=index: self._exchanged_outputs()[index]))
             self.fmi_units[name] = unit
             if name.startswith(("a_", "arel_")):
                 self.fmi_dependencies[name] = ("ag", "F")
-        vr = {v.name: v.value_reference for v in self.vars.values()}
-        self._ag_F = [vr["ag"], vr["F"]]
-        self._picks: list[tuple[list[int], object]] = []
+        # The master exchanges the same value references every step: fast paths for them (fast_exchange).
+        self.exchange_fast(inputs=("ag", "F"), outputs=[name for name, _, _ in outputs])
 
     # -- the model ---------------------------------------------------------------------------------------
     def _building(self) -> core.OpenSeesBuilding | None:
@@ -134,44 +133,23 @@ class OpenSeesBuilding(Fmi2Slave):
         if model is not None:
             model.close()
 
-    def _outputs(self) -> list[float]:
+    def _exchanged_outputs(self) -> list[float]:
         model = self._model
         if model is None:
-            return [math.nan] * len(self._output_index)
+            return [math.nan] * len(self._fast_output_index)
         key = (self.ag, self.F, model.steps)
         if key != self._cache_key:
             self._values = model.output_vector(self.ag, self.F).tolist()
             self._cache_key = key
         return self._values
 
-    def _picker(self, vrs):
-        for known, picker in self._picks:
-            if vrs == known:
-                return picker
-        index = self._output_index
-        if not all(vr in index for vr in vrs):
-            return None
-        picker = operator.itemgetter(*(index[vr] for vr in vrs)) if len(vrs) > 1 else None
-        if picker is not None and len(self._picks) < 8:
-            self._picks.append((list(vrs), picker))
-        return picker
-
-    def get_real(self, vrs):
-        picker = self._picker(vrs)
-        if picker is not None:
-            return list(picker(self._outputs()))
-        index = self._output_index
-        if len(vrs) == 1 and vrs[0] in index:
-            return [self._outputs()[index[vrs[0]]]]
-        return super().get_real(vrs)
-
-    def set_real(self, vrs, values):
-        if vrs == self._ag_F:
-            self.ag, self.F = values
-            return
-        super().set_real(vrs, values)
-
     def exit_initialization_mode(self):
+        # another FMU's copy of the shared fast paths with other code: refused (shared_copies), every step fails
+        problem = shared_copies.copy_problem((fast_exchange,), self.resources)
+        if problem:
+            self._run_failed = problem
+            self.log(problem, Fmi2Status.error)
+            return
         self._building()  # logs a bad script; an exception here would be fmi2Fatal
 
     def do_step(self, current_time: float, step_size: float) -> bool:

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import copy
 import math
-import operator
 import sys
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
@@ -37,7 +36,9 @@ from pythonfmu.enums import Fmi2Status
 
 try:
     import dyke_building
+    import fast_exchange
     import shared_copies
+    from fast_exchange import FastExchange
     from shear_building_core import (
         ENERGY_NAMES,
         HYSTERESIS_LAWS,
@@ -67,12 +68,35 @@ DEFAULT_FY_DYKE = (3300.0, 3700.0, 3200.0)  # N, storeys 1..3: half the 0 A line
 DEFAULT_FY = 3200.0  # N, every storey of a variant with another storey count
 DEFAULT_B = 0.05  # post-yield stiffness ratio
 DEFAULT_N = 2.0  # Bouc-Wen exponent
-FMU_CORE_MODULES = ("shear_building_core", "dyke_building", "shared_copies")
+FMU_CORE_MODULES = ("shear_building_core", "dyke_building", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ("numpy", "scipy")  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
 
-class ShearBuilding(Fmi2Slave):
+_INPUT = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
+_PARAMETER = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
+_OUTPUT = {"causality": Fmi2Causality.output, "variability": Fmi2Variability.continuous}
+_LOCAL = {"causality": Fmi2Causality.local, "variability": Fmi2Variability.continuous}
+
+
+def _where(j: int) -> str:
+    return "base floor" if j == 0 else f"floor {j}"
+
+
+def output_table(n_levels: int) -> list[tuple[str, str, str]]:
+    """(name, unit, description) of the outputs, in the order of ``BuildingModel.output_vector``."""
+    levels, storeys = range(n_levels), range(1, n_levels)
+    return (
+        [(f"x_{j}", "m", f"displacement of the {_where(j)} relative to the ground") for j in levels]
+        + [(f"v_{j}", "m/s", f"velocity of the {_where(j)} relative to the ground") for j in levels]
+        + [(f"a_{j}", "m/s2", f"absolute acceleration of the {_where(j)}") for j in levels]
+        + [(f"arel_{j}", "m/s2", f"acceleration of the {_where(j)} relative to the ground") for j in levels]
+        + [(f"drift_{j}", "m", f"inter-storey drift x_{j} - x_{j - 1}") for j in storeys]
+        + [(f"shear_{j}", "N", f"shear force in storey {j}") for j in storeys]
+    )
+
+
+class ShearBuilding(FastExchange, Fmi2Slave):
     """Shear building on a base floor, exact discretization of the linear model."""
 
     description = "n-storey shear building on a base floor (relative coordinates, exact ZOH stepping)"
@@ -80,7 +104,19 @@ class ShearBuilding(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._slave_attrs = frozenset(vars(self)) | {"_slave_attrs"}
-        n = N_STOREYS
+        self._set_defaults(N_STOREYS)
+        self.fmi_units = {"ag": "m/s2", "F": "N"}
+        self.fmi_dependencies = {}
+        # Registered in this order, so that the value references of the linear model's variables stay as they were.
+        self._register_linear_model()
+        outputs = self._register_outputs(output_table(self.n_levels))
+        self._register_yielding_storeys()
+        self._register_energies(len(outputs))
+        # The master exchanges the same value references every step: fast paths for them (fast_exchange).
+        self.exchange_fast(inputs=("ag", "F"), outputs=(*outputs, *ENERGY_NAMES))
+
+    def _set_defaults(self, n: int) -> None:
+        """The start values of the variables (the paper's building for 3 storeys) and the unit's own state."""
         self.n_levels = n + 1
         default = BuildingParams.dyke() if n == 3 else BuildingParams.uniform(n)
         self.ag = 0.0
@@ -102,78 +138,63 @@ class ShearBuilding(Fmi2Slave):
         self._copy_problem = ""
         self._cache_key: tuple | None = None
         self._values: list[float] = []
-        self._output_index: dict[int, int] = {}  # value reference -> index in output_vector
+        self._n_values = 0  # outputs and energies that _exchanged_outputs gives
 
-        inp = {"causality": Fmi2Causality.input, "variability": Fmi2Variability.continuous}
-        par = {"causality": Fmi2Causality.parameter, "variability": Fmi2Variability.fixed}
-        self.register_variable(Real("ag", description="ground acceleration", **inp))
+    def _register_linear_model(self) -> None:
+        """Inputs ag and F, and m_j, k_j, c_j of every level."""
+        self.register_variable(Real("ag", description="ground acceleration", **_INPUT))
         self.register_variable(
-            Real("F", description="isolator restoring force, acts on the base against x_0", **inp)
+            Real("F", description="isolator restoring force, acts on the base against x_0", **_INPUT)
         )
-        self.fmi_units = {"ag": "m/s2", "F": "N"}
-        self.fmi_dependencies = {}
         for j in range(self.n_levels):
-            where = "base floor" if j == 0 else f"floor {j}"
             spring = "base to ground" if j == 0 else f"storey {j}"
-            self._param(f"m_{j}", self.m, j, "kg", f"mass of the {where}", par)
-            self._param(f"k_{j}", self.k, j, "N/m", f"stiffness, {spring}", par)
-            self._param(f"c_{j}", self.c, j, "N.s/m", f"damping, {spring}", par)
-        # Outputs in the order of BuildingModel.output_vector.
-        levels = range(self.n_levels)
-        storeys = range(1, self.n_levels)
+            self._param(f"m_{j}", self.m, j, "kg", f"mass of the {_where(j)}", _PARAMETER)
+            self._param(f"k_{j}", self.k, j, "N/m", f"stiffness, {spring}", _PARAMETER)
+            self._param(f"c_{j}", self.c, j, "N.s/m", f"damping, {spring}", _PARAMETER)
 
-        def where(j):
-            return "base floor" if j == 0 else f"floor {j}"
-
-        outputs = (
-            [(f"x_{j}", "m", f"displacement of the {where(j)} relative to the ground") for j in levels]
-            + [(f"v_{j}", "m/s", f"velocity of the {where(j)} relative to the ground") for j in levels]
-            + [(f"a_{j}", "m/s2", f"absolute acceleration of the {where(j)}") for j in levels]
-            + [(f"arel_{j}", "m/s2", f"acceleration of the {where(j)} relative to the ground") for j in levels]
-            + [(f"drift_{j}", "m", f"inter-storey drift x_{j} - x_{j - 1}") for j in storeys]
-            + [(f"shear_{j}", "N", f"shear force in storey {j}") for j in storeys]
-        )
-        for index, (name, unit, text) in enumerate(outputs):
-            var = Real(name, description=text, causality=Fmi2Causality.output,
-                       variability=Fmi2Variability.continuous, getter=lambda index=index: self._outputs()[index])
-            self.register_variable(var)
-            self._output_index[var.value_reference] = index
+    def _register_outputs(self, table: list[tuple[str, str, str]]) -> list[str]:
+        """The outputs of ``table`` (name, unit, description; in the order of output_vector); their names."""
+        for index, (name, unit, text) in enumerate(table):
+            self.register_variable(Real(name, description=text, getter=self._value_getter(index), **_OUTPUT))
             self.fmi_units[name] = unit
             if name.startswith(("a_", "arel_")):
                 self.fmi_dependencies[name] = ("ag", "F")
-        # Yielding storeys, registered after the outputs: the original value references stay as they were.
+        self._n_values += len(table)
+        return [name for name, _, _ in table]
+
+    def _value_getter(self, index: int):
+        return lambda: self._exchanged_outputs()[index]
+
+    def _register_yielding_storeys(self) -> None:
+        """The storey laws' parameters, the residual drifts and P-Delta (registered after the outputs)."""
         choices = " or ".join(f"'{h}'" for h in HYSTERESIS_LAWS)
-        self.register_variable(String("hysteresis", description=f"{choices}: storey law for all storeys", **par))
+        self.register_variable(String("hysteresis", description=f"{choices}: storey law for all storeys",
+                                      **_PARAMETER))
         for j in range(1, self.n_levels):
-            self._param(f"fy_{j}", self.fy, j, "N", f"yield shear of storey {j} (bilinear, bouc-wen)", par)
-            self._param(f"b_{j}", self.b, j, "1", f"post-yield stiffness ratio of storey {j}, in [0, 1)", par)
-            self._param(f"n_{j}", self.n_exp, j, "1", f"Bouc-Wen exponent of storey {j} (>= 1)", par)
-        self.register_variable(Real("bw_beta", description="Bouc-Wen beta, all storeys", **par))
-        self.register_variable(Real("bw_gamma", description="Bouc-Wen gamma, all storeys", **par))
+            self._param(f"fy_{j}", self.fy, j, "N", f"yield shear of storey {j} (bilinear, bouc-wen)", _PARAMETER)
+            self._param(f"b_{j}", self.b, j, "1", f"post-yield stiffness ratio of storey {j}, in [0, 1)", _PARAMETER)
+            self._param(f"n_{j}", self.n_exp, j, "1", f"Bouc-Wen exponent of storey {j} (>= 1)", _PARAMETER)
+        self.register_variable(Real("bw_beta", description="Bouc-Wen beta, all storeys", **_PARAMETER))
+        self.register_variable(Real("bw_gamma", description="Bouc-Wen gamma, all storeys", **_PARAMETER))
         self.fmi_units.update(bw_beta="1", bw_gamma="1")
         self.register_variable(Integer("substeps", description="Newmark sub-steps per step (yielding storeys)",
-                                       **par))
+                                       **_PARAMETER))
         for j in range(1, self.n_levels):
             name = f"residual_drift_{j}"
             self.register_variable(Real(name, description=f"residual drift of storey {j}: drift - f/k_{j}",
-                                        causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
-                                        getter=lambda s=j - 1: self._residual(s)))
+                                        getter=lambda s=j - 1: self._residual(s), **_LOCAL))
             self.fmi_units[name] = "m"
-        self.register_variable(Boolean("p_delta", description="add the linearised P-Delta stiffness -P_j/h_j", **par))
+        self.register_variable(Boolean("p_delta", description="add the linearised P-Delta stiffness -P_j/h_j",
+                                       **_PARAMETER))
         for j in range(1, self.n_levels):
-            self._param(f"h_{j}", self.h, j, "m", f"height of storey {j} (P-Delta)", par)
-        # Energy integrals (locals, like residual_drift_j): evaluated with the outputs, after them in _outputs().
-        n_outputs = len(outputs)
+            self._param(f"h_{j}", self.h, j, "m", f"height of storey {j} (P-Delta)", _PARAMETER)
+
+    def _register_energies(self, first: int) -> None:
+        """The energy integrals (locals, like residual_drift_j), after the outputs in ``_exchanged_outputs``."""
         for k, (name, text) in enumerate(zip(ENERGY_NAMES, ENERGY_DOCS, strict=True)):
-            var = Real(name, description=text, causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
-                       getter=lambda index=n_outputs + k: self._outputs()[index])
-            self.register_variable(var)
-            self._output_index[var.value_reference] = n_outputs + k
+            self.register_variable(Real(name, description=text, getter=self._value_getter(first + k), **_LOCAL))
             self.fmi_units[name] = "J"
-        # The master exchanges the same value references every step: fast paths for them.
-        vr = {v.name: v.value_reference for v in self.vars.values()}
-        self._ag_F = [vr["ag"], vr["F"]]
-        self._picks: list[tuple[list[int], object]] = []  # (requested value references, their picker)
+        self._n_values += len(ENERGY_NAMES)
 
     def _param(self, name, store, j, unit, text, attrs) -> None:
         def setter(value, store=store, j=j):
@@ -207,51 +228,23 @@ class ShearBuilding(Fmi2Slave):
             self._cache_key = None
         return self._model
 
-    def _outputs(self) -> list[float]:
-        """All outputs for the present state and inputs, computed once per change (NaN if invalid)."""
+    def _exchanged_outputs(self) -> list[float]:
+        """All outputs, then the energies, for the present state and inputs, computed once per change (NaN if
+        the parameters are invalid)."""
         model = self._building()
         if model is None:
-            return [math.nan] * len(self._output_index)
+            return [math.nan] * self._n_values
         key = (self.ag, self.F, model.steps, id(model))
         if key != self._cache_key:
             self._values = model.output_vector(self.ag, self.F).tolist() + model.energies().tolist()
             self._cache_key = key
         return self._values
 
-    def _picker(self, vrs):
-        """itemgetter of the requested outputs in output_vector (None: not all outputs), kept per request."""
-        for known, picker in self._picks:
-            if vrs == known:
-                return picker
-        index = self._output_index
-        if not all(vr in index for vr in vrs):
-            return None
-        picker = operator.itemgetter(*(index[vr] for vr in vrs)) if len(vrs) > 1 else None
-        if picker is not None and len(self._picks) < 8:
-            self._picks.append((list(vrs), picker))
-        return picker
-
-    def get_real(self, vrs):
-        # Fast path for outputs (one evaluation for all of them); pythonfmu's for the rest.
-        picker = self._picker(vrs)
-        if picker is not None:
-            return list(picker(self._outputs()))
-        index = self._output_index
-        if len(vrs) == 1 and vrs[0] in index:
-            return [self._outputs()[index[vrs[0]]]]
-        return super().get_real(vrs)
-
-    def set_real(self, vrs, values):
-        if vrs == self._ag_F:
-            self.ag, self.F = values
-            return
-        super().set_real(vrs, values)
-
     def exit_initialization_mode(self):
         self._model = None  # String and Integer parameters may have changed since the last build
-        # another FMU's copy of the shared building table with other code: refused (shared_copies)
+        # another FMU's copy of a shared module (the building table, the fast paths) with other code: refused
         self._failed = ""
-        self._copy_problem = shared_copies.copy_problem((dyke_building,), self.resources)
+        self._copy_problem = shared_copies.copy_problem((dyke_building, fast_exchange), self.resources)
         if self._copy_problem:
             self.log(self._copy_problem, Fmi2Status.error)
             return

@@ -11,13 +11,15 @@ import copy
 import math
 
 import dyke_building
+import fast_exchange
 import mre_isolator_core
 import shared_copies
+from fast_exchange import FastExchange
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.enums import Fmi2Status
 from sosm_controller_core import IsolatorModel, SosmController, SosmGains
 
-FMU_CORE_MODULES = ("sosm_controller_core", "mre_isolator_core", "dyke_building", "shared_copies")
+FMU_CORE_MODULES = ("sosm_controller_core", "mre_isolator_core", "dyke_building", "shared_copies", "fast_exchange")
 FMU_REQUIREMENTS: tuple[str, ...] = ()  # besides Python >= 3.11
 FMU_FAILED_STEP_STATUS = "error"  # a do_step that returns False (an error it logged) is fmi2Error
 
@@ -42,7 +44,7 @@ _MODEL = {
 MODES = ("sosm", "passive")
 
 
-class SosmCurrentController(Fmi2Slave):
+class SosmCurrentController(FastExchange, Fmi2Slave):
     """SOSM controller commanding the isolator current; passive mode holds a constant current."""
 
     description = "Second-order sliding-mode controller of the MRE isolator current (Eq. 27-39)"
@@ -89,11 +91,8 @@ class SosmCurrentController(Fmi2Slave):
                 getter=self._current,
             )
         )
-        # The master exchanges the same value references every step: fast paths for them.
-        vr = {v.name: v.value_reference for v in self.vars.values()}
-        self._input_attrs = {vr["x"]: "x", vr["v"]: "v", vr["a"]: "a"}
-        self._xva = [vr["x"], vr["v"], vr["a"]]
-        self._i_only = [vr["i"]]
+        # The master exchanges the same value references every step: fast paths for them (fast_exchange).
+        self.exchange_fast(inputs=("x", "v", "a"), outputs=("i",))
 
     def _make_controller(self) -> SosmController:
         gains = SosmGains(**{attr: getattr(self, fmi_name) for fmi_name, (attr, _, _) in _GAINS.items()})
@@ -109,9 +108,11 @@ class SosmCurrentController(Fmi2Slave):
             return min(max(self.i_start, 0.0), self.i_max)
         return self._controller.i
 
+    _exchanged_value = _current  # the fast output (fast_exchange)
+
     def exit_initialization_mode(self):
         # Problems are logged and fail the first step: an exception here would be fmi2Fatal.
-        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building), self.resources)
+        self._failed = shared_copies.copy_problem((mre_isolator_core, dyke_building, fast_exchange), self.resources)
         if not self._failed and self.mode not in MODES:
             self._failed = f"parameter mode = {self.mode!r} is not one of {MODES}"
         elif not self._failed:
@@ -125,21 +126,6 @@ class SosmCurrentController(Fmi2Slave):
             self.log(f"i_passive = {self.i_passive:g} A is outside [0, i_max = {self.i_max:g} A]: the current is held "
                      f"at {self._current():g} A", Fmi2Status.warning)
 
-    def set_real(self, vrs, values):
-        if vrs == self._xva:
-            self.x, self.v, self.a = values
-            return
-        attrs = self._input_attrs
-        if all(vr in attrs for vr in vrs):
-            for vr, value in zip(vrs, values, strict=True):
-                setattr(self, attrs[vr], value)
-            return
-        super().set_real(vrs, values)
-
-    def get_real(self, vrs):
-        if vrs == self._i_only:
-            return [self._current()]
-        return super().get_real(vrs)
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if self._failed:

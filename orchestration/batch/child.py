@@ -3,9 +3,8 @@
 pythonfmu units load into the interpreter that hosts them. Run in the worker itself, a
 co-simulation would leave behind, for good: its FMUs' resource folders on ``sys.path``
 (four entries per run), their Python modules in ``sys.modules`` (so a later FMU with the
-same module name but other code would silently run the first one's code), and about
-0.13 MB of memory per run (measured: 80 -> 102 MiB over 140 two-second runs). The native
-executor also holds the GIL for a whole run, which would starve the worker's event loop
+same module name but other code would silently run the first one's code), and memory that
+grows with every run. The native executor also holds the GIL for a whole run, which would starve the worker's event loop
 (heartbeats) on long runs, and a crashing FMU would take the worker down, so Dask would
 retry it elsewhere as if the machine had failed. A child process per run has none of
 these problems and makes a crash the run's own failure, with its signal.
@@ -13,16 +12,23 @@ these problems and makes a crash the run's own failure, with its signal.
 Children are forked from a *forkserver* (``multiprocessing``), started once per worker and
 preloaded with :mod:`orchestration.batch.forkserver_preload` (numpy, scipy, fmpy,
 pythonfmu, the master, the native kernel, the worker's main script), so a child costs a
-fork (10-30 ms), not an interpreter start; a run in a child is as fast as in the worker
-(``benchmarks/results_dask.md``). The child dies with its forkserver (``PR_SET_PDEATHSIG``),
-so a worker that goes away takes its running co-simulation with it.
+fork, not an interpreter start, and a run in a child is as fast as in the worker. The child dies
+with its forkserver (``PR_SET_PDEATHSIG``), so a worker that goes away takes its running
+co-simulation with it.
 
 A child hosts one run and exits, so its FMUs are loaded from extractions shared by every run of
 the machine (``<temp>/mre-cosim-files-<uid>/extracted/<SHA-256 of the archive>/``, made once;
-:func:`orchestration.master.fmu_loading.share_extractions`), not extracted afresh for each run:
-0.013 s less per short run on a quiet machine (0.372 against 0.385 s), 1.3 s under a load average
-of 22 (``benchmarks/study_overhead.py --job-cost 8``).
+:func:`orchestration.master.fmu_loading.share_extractions`), not extracted afresh for each run.
 Every run still instantiates its units fresh, in a fresh process.
+
+This is the study's one way to fork, and it is not the engine's
+(:mod:`orchestration.master.child_process`, which forks a run's CSV and plot writers from the run's
+own process and shares its row storage with them). The two serve different purposes: here the
+child is forked from a long-lived server preloaded with the modules a run imports (not from the
+worker, which has threads, so a plain fork would be unsafe), runs arbitrary pickled work, sends a
+pickled result back through a :mod:`multiprocessing` connection, and is bounded by a timeout and a
+cancellation poll; there the child is forked from a single-threaded run, shares memory with it, is
+fed row counts through a pipe and answers one JSON value.
 """
 
 from __future__ import annotations
@@ -57,7 +63,7 @@ def _context(preload: tuple[str, ...] = ()) -> Any:
             # Dask starts its workers as daemonic processes, which multiprocessing forbids to have
             # children. Ours cannot outlive the worker (they die with its forkserver, which dies
             # with the worker), which is what that rule protects against.
-            mp.current_process()._config["daemon"] = False
+            mp.current_process()._config["daemon"] = False  # type: ignore[attr-defined]
             ctx = mp.get_context("forkserver")
             ctx.set_forkserver_preload([*preload, PRELOAD])  # PRELOAD last: its gc.freeze() covers them all
             from multiprocessing import forkserver, spawn
@@ -65,7 +71,7 @@ def _context(preload: tuple[str, ...] = ()) -> Any:
             # Python 3.11's forkserver neither applies the parent's sys.path before its preload
             # imports nor imports the parent's main script (it looks for a key that its own
             # preparation data does not have), so every child would run the main script again
-            # (about 0.7 s when it imports the studies). Both go to the server through the
+            # (importing the studies each time). Both go to the server through the
             # environment while it starts; the preload module imports the main script.
             main = spawn.get_preparation_data("forkserver").get("init_main_from_path")
             saved = {k: os.environ.get(k) for k in ("PYTHONPATH", MAIN_ENV)}
@@ -123,7 +129,7 @@ def _share_extractions() -> None:
 
 
 def _child(func_bytes: bytes, payload: Any, conn: Connection, log: str | None) -> None:
-    import cloudpickle
+    import cloudpickle  # type: ignore[import-untyped]
 
     _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the study decides about interruptions

@@ -14,7 +14,8 @@ import ast
 from functools import lru_cache
 from pathlib import Path
 
-PROJECT_DIR = Path(__file__).resolve().parents[2]
+from mre_common.project_paths import PROJECT_DIR
+
 MODULE_PREFIX = "module:"
 """A code source given as ``module:<dotted name>`` stands for that module's import closure."""
 

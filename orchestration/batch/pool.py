@@ -431,7 +431,7 @@ class BatchPool:
         return [r for r in results if r is not None]
 
 
-def map_jobs(
+def map_jobs(  # noqa: PLR0913 - keyword-only options: those of BatchPool.map, and of the pool made here
     fn: Callable[[Any], Any],
     payloads: Sequence[Any],
     *,

@@ -27,10 +27,11 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.atomic_files import atomic_write_bytes
+from mre_common.hashing import cached_file_sha256
 from mre_common.private_cache import fallback_folder, folder_problem, note, remove_entry, trusted_folder
+from mre_common.project_paths import PROJECT_DIR
 from orchestration.master.resolve import SystemPlan
 
-PROJECT_DIR = Path(__file__).resolve().parents[2]
 # The code that decides any job's numbers: the engine (its folder: also the C sources it compiles) and every
 # project module the job plumbing imports. A study adds its job module (``module:<name>``: that module and all it
 # imports, orchestration.batch.code_sources) through ``job_key(..., sources=...)``.
@@ -50,19 +51,7 @@ class FileRef:
     name: str
 
 
-@lru_cache(maxsize=4096)
-def _sha256_cached(path: str, size: int, mtime_ns: int) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def file_sha256(path: Path | str) -> str:
-    """SHA-256 (hex) of a file, computed once per (path, size, modification time)."""
-    st = os.stat(path)
-    return _sha256_cached(str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+file_sha256 = cached_file_sha256  # SHA-256 (hex) of a file, computed once per (path, size, modification time)
 
 
 @dataclass(frozen=True)

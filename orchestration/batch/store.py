@@ -19,6 +19,7 @@ import json
 import os
 import socket
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +60,35 @@ def stored_problem(path: Path, key: str) -> str | None:
     if data.get("checksum") != checksum(data):
         return "its checksum does not match its content (edited after it was stored?)"
     return None
+
+
+@dataclass(frozen=True)
+class StoredResult:
+    """One finished job as a study's ``jobs/`` keeps it: its label, how it ended, the job's value if ``ok``.
+
+    ``value`` is the job's own plain data (each study types it: ``case_jobs.CosimResult``, ...); ``reused_from``
+    names the store across studies a result was copied from. :meth:`to_json` is what :meth:`ResultStore.put`
+    is given, :meth:`from_json` reads back what :meth:`ResultStore.get` returns."""
+
+    label: str
+    ok: bool
+    status: str
+    value: Any = None
+    error: str | None = None
+    wall_time_s: float | None = None
+    worker: str | None = None
+    reused_from: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"label": self.label, "ok": self.ok, "status": self.status, "value": self.value, "error": self.error,
+               "wall_time_s": self.wall_time_s, "worker": self.worker}
+        return out if self.reused_from is None else {**out, "reused_from": self.reused_from}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> StoredResult:
+        return cls(label=d.get("label", d.get("key", "")), ok=bool(d["ok"]), status=d["status"], value=d.get("value"),
+                   error=d.get("error"), wall_time_s=d.get("wall_time_s"), worker=d.get("worker"),
+                   reused_from=d.get("reused_from"))
 
 
 class ResultStore:

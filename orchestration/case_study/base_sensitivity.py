@@ -24,10 +24,12 @@ from typing import Any
 
 from components.physics.shear_building_core import BuildingParams
 from components.physics.sosm_controller_core import SosmGains
-from orchestration.case_study.analysis import csv_text
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.run_metrics import csv_text
+from orchestration.building_studies.run_settings import run_overrides
 from orchestration.case_study.case_config import LoadedStudy
 from orchestration.case_study.claims import PINNED_SHARE
-from orchestration.case_study.tuning import RECORD_COLUMNS, pool_evaluate_many, read_gains, run_overrides
+from orchestration.case_study.tuning import RECORD_COLUMNS, pool_evaluate_many
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.runfolder import write_json, write_text
 
@@ -55,7 +57,7 @@ def conclusions(rows: Sequence[Mapping[str, Any]], records: Sequence[str], range
                 ) -> dict[str, dict[str, Any]]:
     """Per variant, each conclusion of the case study: holds (bool) and the numbers behind it.
 
-    ``rows``: one per variant x record x strategy with the keys of :func:`tuning.peak_values`
+    ``rows``: one per variant x record x strategy with the keys of :func:`objective.peak_values`
     (a3 [m/s^2], d [m], s_bound, i_max [A], ...). Conclusions:
 
     * ``sosm_reduces``: SOSM lowers peak a_3 and peak drift against passive-off on every record;

@@ -26,7 +26,8 @@ T = t_end - t_0, integrals by the trapezoidal rule over the recorded samples:
 Differences from the benchmark paper: J4 uses the drift in metres (the ratio is the same as the paper's
 drift ratio for a storey of any height, but the storey that is largest may differ with unequal heights);
 the paper's J6 divides the peak device force by the controlled run's own peak base shear, here it is
-over the baseline's peak device force, as issue 23 asks; J9 is the energy share over the baseline's share.
+over the baseline's peak device force (a ratio against the same baseline as the others); J9 is the energy
+share over the baseline's share.
 
 Control effort: mean current (1/T) integral i dt [A], coil heat per ohm integral i^2 dt [A^2 s] and
 mean rate (1/T) sum abs(delta i) = mean abs(di/dt) [A/s].

@@ -134,7 +134,7 @@ def step_criteria_changes(folder: Path, study: CaseStudyRecord, raw: dict[tuple[
                           ) -> dict[tuple[str, str], dict[str, float]]:
     """``--verify-step``: (record, strategy) -> each raw criterion's relative change in the run at half the plant's
     step (the same for every baseline: the baseline's own change shows in its row)."""
-    from orchestration.case_study.analysis import read_timeseries
+    from orchestration.building_studies.run_metrics import read_timeseries
     from orchestration.case_study.case_metrics import read_validity
 
     out = {}

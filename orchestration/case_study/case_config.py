@@ -12,26 +12,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-from orchestration.case_study.robustness_config import RobustnessSpec
-from orchestration.case_study.strategies import (
+from orchestration.building_studies.strategies import (
     Strategy,
     StrategyEntry,
     strategy_library,
     unknown_strategies,
 )
+from orchestration.building_studies.study_file import REPLACED_KEYS, apply_overrides
+from orchestration.case_study.robustness_config import RobustnessSpec
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems
-from orchestration.master.yaml_source import YAML_BOOLEANS, load_tree
+from orchestration.master.yaml_source import load_tree
 
 STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")
 UNCONTROLLED = "passive-off"
 SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
 
-
-REPLACED_KEYS = frozenset({"records"})  # a study that extends another and names records runs those only
 
 MAX_SWEEP_POINTS = 10_001
 """Most constant currents a sweep may try (each is a co-simulation per record)."""
@@ -282,38 +280,6 @@ class LoadedStudy:
         return self.spec.fig15.i_max, self.spec.fig15.objective, self.spec.fig15.tuning
 
 
-def key_files(study_file: Path) -> dict:
-    """Which file of an ``extends`` chain wrote each key of a study file (relative paths are relative to it), as
-    it reads now; empty if it cannot be read (the paths are then relative to the study file). For ``--resume``."""
-    try:
-        return load_tree(study_file, replace=REPLACED_KEYS)[1]
-    except (ScenarioError, OSError, ValueError):
-        return {}
-
-
-def apply_overrides(data: dict[str, Any], lines: dict, overrides: tuple[str, ...]) -> None:
-    """``KEY=VALUE`` (VALUE as YAML) into the study's data; ScenarioError for a malformed one."""
-    for assignment in overrides:
-        key, sep, text = assignment.partition("=")
-        if not sep or not key.strip():
-            raise ScenarioError(Problem("expected KEY=VALUE", "", f"--set {assignment}"))
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ScenarioError(Problem(f"value is not YAML: {exc}", key, f"--set {assignment}")) from None
-        if isinstance(value, bool) and text.strip() not in YAML_BOOLEANS:
-            raise ScenarioError(Problem(f"{text.strip()!r} is a YAML 1.1 boolean: write true or false", key,
-                                        f"--set {assignment}"))
-        node = data
-        parts = key.strip().split(".")
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ScenarioError(Problem(f"'{part}' is not a mapping", key, f"--set {assignment}"))
-        node[parts[-1]] = value
-        lines[tuple(parts)] = (f"--set {assignment}", None)
-
-
 def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy:
     """Read and validate a study file; ``overrides`` are ``KEY=VALUE`` (VALUE as YAML). Raises ScenarioError."""
     path = Path(path).resolve()
@@ -345,7 +311,7 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
 def best_current_problems(study: LoadedStudy) -> list[Problem]:
     """A listed strategy whose parameters use ``${best_current}`` while the study runs no best-constant sweep
     (the sweep that finds that current), refused before anything is written."""
-    from orchestration.case_study.strategies import BEST
+    from orchestration.building_studies.strategies import BEST
 
     spec = study.spec
     if "best-constant" in spec.strategies:

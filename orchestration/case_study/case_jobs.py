@@ -2,22 +2,22 @@
 
 Co-simulations run in a child process of the worker (``isolate=True``) and send their run
 folder back; the in-process physics (current sweep, Radau reference) runs in the worker.
-Values are plain data. The IDA's job (:mod:`orchestration.ida_study.ida_jobs`) records the
-same variables.
+Payloads and values are plain data (they cross into other processes and into ``jobs/``), each
+read and written through its record: :class:`SweepInputs`, :class:`ReferenceInputs`,
+:class:`CosimResult`. Every co-simulation records the building studies' variables
+(:data:`orchestration.building_studies.run_settings.RECORDED`).
 """
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
 from orchestration.batch.jobs import job_plan, run_folder
+from orchestration.building_studies.run_settings import RECORDED
 
-# Recorded variables of every co-simulation of a study (the report roles are added by the master).
-RECORDED = ("building.x_0", "building.v_0", "building.drift_1", "building.drift_2", "building.drift_3",
-            "building.a_0", "building.a_1", "building.a_2", "building.a_3", "building.shear_1",
-            "building.shear_2", "building.shear_3", "isolator.F", "controller.i")
 OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 # A controller benchmark records the floors' velocities too (the input energy of its criterion J9).
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
@@ -27,41 +27,108 @@ BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1"
 CODE_SOURCES = ("module:orchestration.case_study.case_jobs",)
 
 
+@dataclass(frozen=True)
+class SweepInputs:
+    """The inputs of a sweep job besides its plan: the constant currents [A] and the objective's settings."""
+
+    currents: list[float]
+    objective: dict[str, Any]  # an ObjectiveSpec dump
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> SweepInputs:
+        return cls(currents=list(d["currents"]), objective=dict(d["objective"]))
+
+
+@dataclass(frozen=True)
+class ReferenceInputs:
+    """The inputs of a Radau reference job besides its plan: the constant current [A] and the relative tolerance."""
+
+    current: float
+    rtol: float
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> ReferenceInputs:
+        return cls(current=float(d["current"]), rtol=float(d["rtol"]))
+
+
+@dataclass(frozen=True)
+class CosimResult:
+    """How one case-study co-simulation ended, as its job returns it and ``jobs/`` stores it (without ``files``,
+    which the client writes into the run folder)."""
+
+    complete: bool
+    status: str
+    error: str | None
+    wall_time_s: float | None
+    unit_warnings: dict[str, Any]
+    time_beyond_identified_range_s: float | None
+    time_beyond_device_limit_s: float | None
+    peak_base_displacement_m: float | None
+    files: dict[str, bytes] | None = None  # the run folder's files (zlib-compressed), by name; None once written
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        if self.files is None:
+            del out["files"]
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> CosimResult:
+        return cls(complete=bool(d["complete"]), status=d["status"], error=d["error"], wall_time_s=d["wall_time_s"],
+                   unit_warnings=d["unit_warnings"], time_beyond_identified_range_s=d["time_beyond_identified_range_s"],
+                   time_beyond_device_limit_s=d["time_beyond_device_limit_s"],
+                   peak_base_displacement_m=d["peak_base_displacement_m"], files=d.get("files"))
+
+    @staticmethod
+    def describes(value: Any) -> bool:
+        """Whether a job's value is a co-simulation's (not a sweep's or a reference's)."""
+        return isinstance(value, dict) and "complete" in value and "time_beyond_identified_range_s" in value
+
+
 def cosim_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """One case-study co-simulation; returns how it ended and its run folder's files (zlib-compressed)."""
+    """One case-study co-simulation; returns how it ended and its run folder's files (:class:`CosimResult`)."""
     outcome, files = run_folder(payload)
     s = outcome.summary
-    return {"complete": outcome.result.complete, "status": outcome.result.status,
-            "error": str(outcome.result.error) if outcome.result.error else None,
-            "wall_time_s": s.get("wall_time_s"), "unit_warnings": s.get("unit_warnings", {}),
-            "time_beyond_identified_range_s": s.get("time_beyond_identified_range_s"),
-            "time_beyond_device_limit_s": s.get("time_beyond_device_limit_s"),
-            "peak_base_displacement_m": s.get("peak_base_displacement_m"), "files": files}
+    return CosimResult(
+        complete=outcome.result.complete, status=outcome.result.status,
+        error=str(outcome.result.error) if outcome.result.error else None, wall_time_s=s.get("wall_time_s"),
+        unit_warnings=s.get("unit_warnings", {}),
+        time_beyond_identified_range_s=s.get("time_beyond_identified_range_s"),
+        time_beyond_device_limit_s=s.get("time_beyond_device_limit_s"),
+        peak_base_displacement_m=s.get("peak_base_displacement_m"), files=files).to_json()
 
 
 def sweep_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """Constant-current sweep of one record (in-process physics): payload plan, files, currents, objective."""
+    """Constant-current sweep of one record (in-process physics): payload plan, files and :class:`SweepInputs`."""
     from orchestration.case_study.case_config import ObjectiveSpec
-    from orchestration.case_study.tuning import sweep_currents
+    from orchestration.case_study.current_sweep import sweep_currents
 
     plan, _ = job_plan(payload)
-    return sweep_currents(plan, list(payload["currents"]), ObjectiveSpec(**payload["objective"]))
+    inputs = SweepInputs.from_json(payload)
+    return sweep_currents(plan, inputs.currents, ObjectiveSpec(**inputs.objective))
 
 
 def reference_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """Monolithic Radau reference at a constant current: peaks in the units of peaks.csv."""
+    """Monolithic Radau reference at a constant current (:class:`ReferenceInputs`): peaks in the units of peaks.csv."""
     from components.physics.monolithic import simulate_radau
-    from orchestration.case_study.tuning import system_setup
+    from orchestration.building_studies.in_process_model import system_setup
 
     plan, _ = job_plan(payload)
+    inputs = ReferenceInputs.from_json(payload)
     sim = plan.loaded.scenario.simulation
-    setup = system_setup(plan, float(payload["current"]))
+    setup = system_setup(plan, inputs.current)
     n = sim.n_steps
     t_eval = sim.start_time + np.arange(n + 1) * sim.step
     t_eval[-1] = sim.stop_time
     if sim.start_time != 0.0:
         raise ValueError("the Radau reference starts at t = 0")
-    tr = simulate_radau(setup, sim.stop_time, t_eval, rtol=float(payload["rtol"]))
+    tr = simulate_radau(setup, sim.stop_time, t_eval, rtol=inputs.rtol)
     p = tr.peaks()
     out = {"x_base_mm": 1e3 * p["x_0"]}
     out.update({f"drift_{j}_mm": 1e3 * p[f"drift_{j}"] for j in range(1, tr.x.shape[1])})

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from orchestration.case_study.analysis import (
+from orchestration.building_studies.run_metrics import (
     INDEX_COLUMNS,
     PEAK_COLUMNS,
     csv_text,

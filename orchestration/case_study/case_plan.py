@@ -8,22 +8,30 @@ portable plan and inputs (see :mod:`orchestration.batch.portable`).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, job_key, plan_content, portable
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.in_process_model import monolithic_problem, system_setup
+from orchestration.building_studies.run_settings import every_step_problem, run_overrides
+from orchestration.building_studies.strategies import COMMAND, check_strategy
 from orchestration.case_study import case_jobs
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy
 from orchestration.case_study.case_records import PreparedStudy, RecordInfo
 from orchestration.case_study.robustness_plan import check_variants
-from orchestration.case_study.strategies import COMMAND, check_strategy
-from orchestration.case_study.tuning import monolithic_problem, read_gains, run_overrides, system_setup
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError
 from orchestration.master.yaml_source import load_tree
 
-# One job: its label (record/...), content key, portable plan and the inputs of its payload.
-PlannedJob = tuple[str, str, PortablePlan, dict[str, Any]]
+
+class PlannedJob(NamedTuple):
+    """One job as planned: its label (``record/...``), content key, portable plan and the inputs of its payload."""
+
+    label: str
+    key: str
+    plan: PortablePlan
+    inputs: dict[str, Any]
 
 
 def gain_sets(study: LoadedStudy) -> dict[str, dict[str, Any]]:
@@ -66,7 +74,7 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
     if problem:
         raise ScenarioError(f"{path}: {problem}")
     # the in-process model: for the Radau reference, and for the sweep on the paper's system (another plant's sweep
-    # co-simulates its FMUs, tuning.sweep_currents)
+    # co-simulates its FMUs, current_sweep.sweep_currents)
     needs_model = spec.reference.enabled or ("best-constant" in spec.strategies and monolithic_problem(plan) is None)
     setup = system_setup(plan, 0.0) if needs_model else None
     masses = list(setup.building.m) if setup else list(BuildingParams.dyke().m)
@@ -75,16 +83,6 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
                       ground.get("scale"), ground.get("time_scale", 1.0),
                       plan.parameters.get("isolator", {}).get("n_isolators"))
     return info, plan
-
-
-def every_step_problem(sim: Any) -> str | None:
-    """Why a study cannot run a scenario whose results file is decimated or not CSV (None: it can): its criteria
-    are computed from every step of each run's ``timeseries.csv``."""
-    if sim.output_interval == 1 and sim.output_format == "csv":
-        return None
-    return (f"simulation.output_interval = {sim.output_interval}, output_format = {sim.output_format}: a study "
-            "computes its criteria from every step of its runs' timeseries.csv, so its runs need the defaults "
-            "(1, csv); set them on single runs (run.py)")
 
 
 def prepare(study: LoadedStudy) -> PreparedStudy:
@@ -117,4 +115,5 @@ def plan_job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ..
     """Label, content key, portable plan and payload inputs of one job (label ``record/...``)."""
     plan = plan_scenario(study.scenario_path(label.split("/")[0]), overrides)
     pp = portable(plan)
-    return label, job_key(kind, {"job": label, "plan": plan_content(pp), **extra}, case_jobs.CODE_SOURCES), pp, extra
+    return PlannedJob(label, job_key(kind, {"job": label, "plan": plan_content(pp), **extra}, case_jobs.CODE_SOURCES),
+                      pp, extra)

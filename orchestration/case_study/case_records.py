@@ -38,8 +38,9 @@ class RecordInfo:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> RecordInfo:
-        return cls(d.get("scenario", ""), d["stop_time_s"], list(d["masses_kg"]), d.get("record_file", ""),
-                   d.get("scale"), d.get("time_scale", 1.0), d.get("n_isolators"))
+        return cls(scenario=d.get("scenario", ""), stop_time_s=d["stop_time_s"], masses_kg=list(d["masses_kg"]),
+                   record_file=d.get("record_file", ""), scale=d.get("scale"), time_scale=d.get("time_scale", 1.0),
+                   n_isolators=d.get("n_isolators"))
 
 
 @dataclass
@@ -81,10 +82,11 @@ class RunEntry:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> RunEntry:
-        return cls(d["key"], d["record"], d["strategy"], d["folder"], bool(d.get("ok")), d.get("error"),
-                   d.get("current_A"), d.get("overrides"), d.get("status"), d.get("wall_time_s"),
-                   d.get("unit_warnings"), d.get("variant"), d.get("valid"), list(d.get("invalid_reasons") or []),
-                   d.get("energy"), d.get("step_change"))
+        return cls(key=d["key"], record=d["record"], strategy=d["strategy"], folder=d["folder"], ok=bool(d.get("ok")),
+                   error=d.get("error"), current_A=d.get("current_A"), overrides=d.get("overrides"),
+                   status=d.get("status"), wall_time_s=d.get("wall_time_s"), unit_warnings=d.get("unit_warnings"),
+                   variant=d.get("variant"), valid=d.get("valid"), invalid_reasons=list(d.get("invalid_reasons") or []),
+                   energy=d.get("energy"), step_change=d.get("step_change"))
 
 
 @dataclass(frozen=True)
@@ -104,7 +106,8 @@ class SweepOutcome:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> SweepOutcome:
-        return cls(bool(d.get("ok")), d.get("error"), d.get("rows") or [], d.get("best_current_A"), d.get("best_J"))
+        return cls(ok=bool(d.get("ok")), error=d.get("error"), rows=d.get("rows") or [],
+                   best_current_A=d.get("best_current_A"), best_J=d.get("best_J"))
 
 
 @dataclass(frozen=True)
@@ -120,7 +123,7 @@ class ReferenceOutcome:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> ReferenceOutcome:
-        return cls(bool(d.get("ok")), d.get("error"), d.get("value"))
+        return cls(ok=bool(d.get("ok")), error=d.get("error"), value=d.get("value"))
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import numpy as np
 
 from components.physics.sosm_conditions import sosm_conditions
 from components.physics.sosm_controller_core import IsolatorModel, SosmGains
-from orchestration.case_study.analysis import INDEX_COLUMNS, INDEX_MEANING, PEAK_COLUMNS
+from orchestration.building_studies.run_metrics import INDEX_COLUMNS, INDEX_MEANING, PEAK_COLUMNS
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_figures import make_figures
 from orchestration.case_study.case_metrics import (

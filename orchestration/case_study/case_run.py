@@ -24,6 +24,7 @@ Dask cluster (nothing written).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shlex
 import sys
 from pathlib import Path
@@ -33,12 +34,20 @@ from mre_common.guard import invoked_as
 from orchestration.batch.jobs import write_run_files
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import PortablePlan, file_bytes
-from orchestration.batch.store import ResultStore, check_folder, open_for_resume
+from orchestration.batch.store import ResultStore, StoredResult, check_folder, open_for_resume
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.in_process_model import NotMonolithic, monolithic_problem
+from orchestration.building_studies.pool_arguments import add_pool_arguments
+from orchestration.building_studies.run_settings import run_overrides
+from orchestration.building_studies.study_file import key_files
 from orchestration.case_study import case_jobs
-from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, key_files, load_study
+from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
 from orchestration.case_study.case_jobs import (
     BENCHMARK_OUTPUTS_OVERRIDE,
     OUTPUTS_OVERRIDE,
+    CosimResult,
+    ReferenceInputs,
+    SweepInputs,
     cosim_job,
     reference_job,
     sweep_job,
@@ -54,7 +63,6 @@ from orchestration.case_study.case_records import (
 )
 from orchestration.case_study.case_report import read_study, write_outputs
 from orchestration.case_study.robustness_plan import VariantPlanner, variants
-from orchestration.case_study.tuning import NotMonolithic, monolithic_problem, read_gains, run_overrides
 from orchestration.engine_hooks import require_kind
 from orchestration.master.errors import ScenarioError
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
@@ -93,15 +101,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
         parser.error("give a study file, or --report DIR, or --resume DIR")
     return args
-
-
-def add_pool_arguments(parser: argparse.ArgumentParser) -> None:
-    """--scheduler and --workers, shared by the study tools."""
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="run on an existing Dask cluster (e.g. tcp://10.0.0.5:8786; default: the environment "
-                             "variable DASK_SCHEDULER_ADDRESS, else a local cluster)")
-    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: the study's "
-                                                    "'workers', else one per core)")
 
 
 def open_pool(args: argparse.Namespace, workers: int | None, max_worker_deaths: int) -> BatchPool:
@@ -177,38 +176,38 @@ class JobRunner:
         """A job ended (or its stored result was found): files, log, store, progress, messages."""
         content_key = res.key
         label = self.labels.get(content_key, content_key)
-        res = JobResult(label, res.ok, res.value, res.error, res.details, res.wall_time_s, res.status, res.worker,
-                        res.output)
-        value = res.value
-        if res.ok and isinstance(value, dict) and "files" in value:
-            write_run_files(self.folder / self.record.run(label).folder, value.pop("files"))
+        res = dataclasses.replace(res, key=label)
+        cosim = CosimResult.from_json(res.value) if res.ok and CosimResult.describes(res.value) else None
+        if cosim is not None and cosim.files is not None:
+            write_run_files(self.folder / self.record.run(label).folder, cosim.files)
+            cosim = dataclasses.replace(cosim, files=None)
+            res = dataclasses.replace(res, value=cosim.to_json())
         if res.output or res.details:
             (self.folder / "logs" / f"{label.replace('/', '-')}.log").write_text(res.output + res.details)
         if not stored:
-            result = {"label": label, "ok": res.ok, "status": res.status, "value": value, "error": res.error,
-                      "wall_time_s": res.wall_time_s, "worker": res.worker}
-            self.store.put(content_key, result)
+            result = StoredResult(label, res.ok, res.status, res.value, res.error, res.wall_time_s, res.worker)
+            self.store.put(content_key, result.to_json())
             if res.ok and content_key in self.cache_for:
-                self.cache_for[content_key].put(content_key, result)
+                self.cache_for[content_key].put(content_key, result.to_json())
         self.collected[label] = res
         if content_key not in self.untracked:
-            self.bar.done(res.ok and not (isinstance(value, dict) and value.get("complete") is False))
+            self.bar.done(res.ok and not (cosim is not None and not cosim.complete))
         if not res.ok:
             self.bar.write(f"FAILED {label}: {res.error}")
-        elif isinstance(value, dict) and "time_beyond_identified_range_s" in value:
-            self.warn(label, value)
+        elif cosim is not None:
+            self.warn(label, cosim)
 
-    def warn(self, label: str, v: dict[str, Any]) -> None:
+    def warn(self, label: str, v: CosimResult) -> None:
         """Messages on a co-simulation's end: incomplete, or beyond the isolator's identified range."""
         spec = self.spec
-        if not v["complete"]:
-            self.bar.write(f"FAILED {label}: run {v['status']}: {v['error']}")
-        if (v["time_beyond_identified_range_s"] or 0) > 0:
+        if not v.complete:
+            self.bar.write(f"FAILED {label}: run {v.status}: {v.error}")
+        if (v.time_beyond_identified_range_s or 0) > 0:
             limit = (f"; beyond the {1e3 * spec.x_limit:g} mm device limit for "
-                     f"{v['time_beyond_device_limit_s']:.3g} s" if v["time_beyond_device_limit_s"] else "")
-            self.bar.write(f"warning: {label}: base displacement {1e3 * v['peak_base_displacement_m']:.2f} mm, beyond "
-                           f"the identified ±{1e3 * spec.x_identified:g} mm for "
-                           f"{v['time_beyond_identified_range_s']:.3g} s (isolator model extrapolated){limit}")
+                     f"{v.time_beyond_device_limit_s:.3g} s" if v.time_beyond_device_limit_s else "")
+            self.bar.write(f"warning: {label}: base displacement {1e3 * (v.peak_base_displacement_m or 0):.2f} mm, "
+                           f"beyond the identified ±{1e3 * spec.x_identified:g} mm for "
+                           f"{v.time_beyond_identified_range_s:.3g} s (isolator model extrapolated){limit}")
 
     def run(self, fn: Any, jobs: list[PlannedJob], isolate: bool, cache: ResultStore | None = None,
             compute: bool = True) -> list[str]:
@@ -233,8 +232,9 @@ class JobRunner:
             if not compute:
                 self.untracked.add(key)
             if old is not None:
-                self.done(JobResult(key, old["ok"], old.get("value"), old.get("error"), "",
-                                    old.get("wall_time_s", 0.0), old["status"], old.get("worker")), stored=True)
+                kept = StoredResult.from_json(old)
+                self.done(JobResult(key, kept.ok, kept.value, kept.error, "", kept.wall_time_s or 0.0, kept.status,
+                                    kept.worker), stored=True)
             elif compute:
                 todo.append((key, {"plan": pp, "files": self.files_of(pp), **extra}))
             else:
@@ -249,7 +249,7 @@ class JobRunner:
 def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
     """The constant-current sweep of every record (for best-constant): into the record's sweep and best current."""
     spec, record = study.spec, runner.record
-    extra = {"currents": spec.sweep.currents(spec.i_max), "objective": spec.objective.model_dump()}
+    extra = SweepInputs(spec.sweep.currents(spec.i_max), spec.objective.model_dump()).to_json()
     base = run_overrides(spec)
     jobs = [plan_job(study, f"{r}/sweep", "sweep", base, extra) for r in record.records]
     # in the worker for the in-process physics; in a child process when a plant's sweep co-simulates its FMUs
@@ -257,70 +257,75 @@ def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
     for r in record.records:
         res = runner.collected.get(f"{r}/sweep")
         if res is not None:
-            record.sweep[r] = SweepOutcome.from_json({"ok": res.ok, "error": res.error, **(res.value or {})})
-            if res.ok:
-                record.best_current[r] = res.value["best_current_A"]
+            sweep = record.sweep[r] = SweepOutcome.from_json({"ok": res.ok, "error": res.error, **(res.value or {})})
+            if sweep.ok and sweep.best_current_A is not None:
+                record.best_current[r] = sweep.best_current_A
+
+
+def plan_run(study: LoadedStudy, runner: JobRunner, entry: RunEntry, outputs: str,
+             planner: VariantPlanner | None = None) -> PlannedJob | None:
+    """One record x strategy co-simulation, nominal or (``planner``) under ``entry.variant``: its entry filled in
+    (current, overrides) and its job planned; None if it cannot run (its best-constant sweep failed: the entry and
+    the record say so). The strategies keep their nominal design (parameters, gains, the nominal sweep's current)."""
+    spec, record = study.spec, runner.record
+    r, s = entry.record, entry.strategy
+    if s == "best-constant" and r not in record.best_current:
+        sweep = record.sweep.get(r)
+        entry.error = (f"current sweep failed: {sweep.error if sweep else None}" if entry.variant is None
+                       else "current sweep failed")
+        runner.done(JobResult(entry.key, False, error=entry.error, status="failed"), stored=True)
+        return None
+    strategy, best = study.strategy(s), record.best_current.get(r)
+    doc = record.gain_sets.get(strategy.entry.gains or "")
+    extra = run_strategy_overrides(study, s, study.scenario_path(r), spec.i_max, doc["gains"] if doc else None, best)
+    if planner is not None and entry.variant is not None:
+        extra = (*extra, *planner.overrides(r, entry.variant, extra))
+    entry.current_A = strategy.constant_current(spec.i_max, best)
+    entry.overrides = list(extra)
+    return plan_job(study, entry.key, "cosim", (*strategy.common(run_overrides(spec)), *extra,
+                                                strategy.recorded(outputs)), {})
+
+
+def longest_first(record: CaseStudyRecord) -> list[str]:
+    """The study's records, longest first (the pool starts the longest jobs first)."""
+    return sorted(record.records, key=lambda r: -record.records[r].stop_time_s)
 
 
 def plan_runs(study: LoadedStudy, runner: JobRunner) -> tuple[list[PlannedJob], list[PlannedJob]]:
     """Every co-simulation (its run entry added to the record) and every Radau reference, longest record first."""
     spec, record = study.spec, runner.record
-    base = run_overrides(spec)
-    gains = {s: doc["gains"] for s, doc in record.gain_sets.items()}
+    outputs = OUTPUTS_OVERRIDE if spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
     runs, references = [], []
-    for r in sorted(record.records, key=lambda r: -record.records[r].stop_time_s):
+    for r in longest_first(record):
         for s in spec.strategies:
             entry = RunEntry(f"{r}/{s}", r, s, f"runs/{r}-{s}")
             record.runs.append(entry)
-            if s == "best-constant" and r not in record.best_current:
-                sweep = record.sweep.get(r)
-                entry.error = f"current sweep failed: {sweep.error if sweep else None}"
-                runner.done(JobResult(entry.key, False, error=entry.error, status="failed"), stored=True)
-                continue
-            strategy, best = study.strategy(s), record.best_current.get(r)
-            extra = run_strategy_overrides(study, s, study.scenario_path(r), spec.i_max,
-                                           gains.get(strategy.entry.gains or ""), best)
-            entry.current_A = strategy.constant_current(spec.i_max, best)
-            entry.overrides = list(extra)
-            outputs = OUTPUTS_OVERRIDE if spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
-            overrides = (*strategy.common(base), *extra, strategy.recorded(outputs))
-            runs.append(plan_job(study, entry.key, "cosim", overrides, {}))
+            if (job := plan_run(study, runner, entry, outputs)) is not None:
+                runs.append(job)
         if spec.reference.enabled:
             for s in ("passive-off", "passive-on"):
                 if s in spec.strategies:
-                    current = 0.0 if s == UNCONTROLLED else spec.i_max
-                    references.append(plan_job(study, f"{r}/{s}/reference", "reference", base,
-                                               {"current": current, "rtol": spec.reference.rtol}))
+                    inputs = ReferenceInputs(0.0 if s == UNCONTROLLED else spec.i_max, spec.reference.rtol)
+                    references.append(plan_job(study, f"{r}/{s}/reference", "reference", run_overrides(spec),
+                                               inputs.to_json()))
     return runs, references
 
 
 def plan_variant_runs(study: LoadedStudy, runner: JobRunner) -> list[PlannedJob]:
     """Every record x strategy under every robustness variant (run entries added to the record), longest record
-    first; the strategies keep their nominal design (parameters, gains, best constant current of the nominal sweep)."""
+    first."""
     spec, record = study.spec, runner.record
     if not variants(study):
         return []
-    base = run_overrides(spec)
-    planner = VariantPlanner(study, base)
-    gains = {s: doc["gains"] for s, doc in record.gain_sets.items()}
+    planner = VariantPlanner(study, run_overrides(spec))
     jobs = []
-    for r in sorted(record.records, key=lambda r: -record.records[r].stop_time_s):
+    for r in longest_first(record):
         for v in variants(study):
             for s in spec.strategies:
                 entry = RunEntry(f"{r}/{s}/{v}", r, s, f"runs/{r}-{s}--{v}", variant=v)
                 record.variant_runs.append(entry)
-                if s == "best-constant" and r not in record.best_current:
-                    entry.error = "current sweep failed"
-                    runner.done(JobResult(entry.key, False, error=entry.error, status="failed"), stored=True)
-                    continue
-                strategy, best = study.strategy(s), record.best_current.get(r)
-                extra = run_strategy_overrides(study, s, study.scenario_path(r), spec.i_max,
-                                               gains.get(strategy.entry.gains or ""), best)
-                extra = (*extra, *planner.overrides(r, v, extra))
-                entry.current_A = strategy.constant_current(spec.i_max, best)
-                entry.overrides = list(extra)
-                jobs.append(plan_job(study, entry.key, "cosim", (*strategy.common(base), *extra,
-                                                                 strategy.recorded(BENCHMARK_OUTPUTS_OVERRIDE)), {}))
+                if (job := plan_run(study, runner, entry, BENCHMARK_OUTPUTS_OVERRIDE, planner)) is not None:
+                    jobs.append(job)
     return jobs
 
 
@@ -357,28 +362,38 @@ def collect(record: CaseStudyRecord, results: dict[str, JobResult]) -> None:
         elif not res.ok:
             entry.error = res.error
         else:
-            v = res.value
-            entry.ok = bool(v["complete"])
-            entry.error = None if v["complete"] else f"run {v['status']}: {v['error']}"
-            entry.status, entry.wall_time_s, entry.unit_warnings = v["status"], v["wall_time_s"], v["unit_warnings"]
+            v = CosimResult.from_json(res.value)
+            entry.ok = v.complete
+            entry.error = None if v.complete else f"run {v.status}: {v.error}"
+            entry.status, entry.wall_time_s, entry.unit_warnings = v.status, v.wall_time_s, v.unit_warnings
     for r in record.records:  # in the study's order (not the order the jobs ended in): reference.csv is stable
         for s in record.strategies:
             res = results.get(f"{r}/{s}/reference")
             if res is not None:
-                record.reference[f"{r}/{s}"] = ReferenceOutcome(res.ok, res.error, res.value)
+                record.reference[f"{r}/{s}"] = ReferenceOutcome(ok=res.ok, error=res.error, value=res.value)
 
 
-def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, progress: bool,
-              command: list[str], resumed: CaseStudyRecord | None = None, verify: bool = False,
-              verify_step: bool = False) -> int:
+@dataclasses.dataclass(frozen=True)
+class RunOptions:
+    """How a study runs: its command line (for the record), a progress bar, ``--verify``, ``--verify-step``."""
+
+    command: list[str]
+    progress: bool = True
+    verify: bool = False  # compute the Radau references the cache lacks
+    verify_step: bool = False  # every co-simulation again at half the plant's step
+
+
+def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, options: RunOptions,
+              resumed: CaseStudyRecord | None = None) -> int:
     """Run every job of a prepared study into ``folder`` on ``pool``; returns the exit code.
 
     Each job's result is stored under its content key (:class:`ResultStore`); with ``resumed``
     (the study.json of an earlier, unfinished run of this folder) stored results are reused.
-    The Radau references come from the cache across studies (:func:`shared_store`); ``verify``
+    The Radau references come from the cache across studies (:func:`shared_store`); ``options.verify``
     computes the ones it lacks.
     """
     spec = study.spec
+    command, progress, verify, verify_step = options.command, options.progress, options.verify, options.verify_step
     record = new_record(study, prepared, pool, command, resumed)
     (folder / "logs").mkdir(exist_ok=True)
     (folder / "runs").mkdir(exist_ok=True)
@@ -501,8 +516,9 @@ def main(argv: list[str] | None = None) -> int:
 
     # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
     try:
-        return run_study(study, folder, prepared, pool, not args.quiet, [sys.executable, *sys.argv], resumed,
-                         verify=args.verify, verify_step=args.verify_step or bool(resumed and resumed.half_step_runs))
+        options = RunOptions([sys.executable, *sys.argv], progress=not args.quiet, verify=args.verify,
+                             verify_step=args.verify_step or bool(resumed and resumed.half_step_runs))
+        return run_study(study, folder, prepared, pool, options, resumed)
     finally:
         pool.close()
         if claim is not None:

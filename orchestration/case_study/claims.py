@@ -1,6 +1,6 @@
 """The paper's claims about its case study (section 4.3, Fig. 16-17), checked on a study's peaks.
 
-Each claim is tested by a quantity computed from the peaks of ``analysis.run_metrics``
+Each claim is tested by a quantity computed from the peaks of ``building_studies.run_metrics.run_metrics``
 (accelerations in m/s², drifts in mm); "holds" allows a relative tie of ``tie`` where a
 claim compares two peaks, because a 1 % difference is within the coupling error of the
 co-simulation (README, Coupling error) and the paper's figures cannot be read closer.

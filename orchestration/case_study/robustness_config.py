@@ -1,4 +1,4 @@
-"""The robustness variants of a controller benchmark (issue 23, part 4): the ``robustness`` section of a study file.
+"""The robustness variants of a controller benchmark: the ``robustness`` section of a study file.
 
 Every controller is designed on the nominal models; a variant runs it against a plant (or a
 measurement chain) that differs from them. A variant is a declared overlay on every record x

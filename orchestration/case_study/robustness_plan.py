@@ -1,4 +1,4 @@
-"""A robustness variant turned into scenario overrides of one record x strategy run (issue 23, part 4).
+"""A robustness variant turned into scenario overrides of one record x strategy run.
 
 The overrides come after the study's and the strategy's (:func:`case_plan.run_strategy_overrides`):
 
@@ -28,9 +28,9 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.fs_limits import path_problem
+from orchestration.building_studies.strategies import COMMAND, CONTROLLER
 from orchestration.case_study.case_config import LoadedStudy
 from orchestration.case_study.robustness_config import PlantUnit, VariantSpec
-from orchestration.case_study.strategies import COMMAND, CONTROLLER
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import Problem, ScenarioError

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.atomic_files import atomic_write_text
-from orchestration.case_study.analysis import read_timeseries
+from orchestration.building_studies.run_metrics import read_timeseries
 from orchestration.case_study.benchmark_criteria import raw_criteria
 from orchestration.case_study.case_metrics import read_validity
 from orchestration.case_study.case_records import CaseStudyRecord

@@ -1,16 +1,5 @@
-"""SOSM gain tuning and the constant-current sweep of the case study (in-process physics).
-
-Both use :func:`orchestration.inprocess.simulate_coupled`, which steps in-process units over the same
-physics cores with the engine's own coupling algorithm, the same step and scheme as a co-simulation of the
-FMUs (about 10x faster than one). The objective, dimensionless, against passive-off (0 A)::
-
-    J = w_acc * a3 / a3_off + w_drift * d / d_off + penalty * max(0, x0 / x_limit - 1)
-        + w_saturation * s_bound + w_zero * s_zero + w_mean_current * i_mean / i_max
-
-a3: peak absolute top-floor acceleration [m/s^2]; d: peak inter-storey drift over all
-storeys [m]; x0: peak base (isolator) displacement [m]; x_limit: the device limit (15 mm);
-s_bound: share of the time the current sits at the controller's limit i_max; s_zero: share
-at 0 A; i_mean: mean current [A] (the current weights are 0 for the study's first gain set).
+"""SOSM gain tuning of the case study (in-process physics), against the objective J of
+:mod:`orchestration.case_study.objective`.
 
 Tuning (one record, by default El Centro, or several: J is then their mean): the gains are
 searched in log space over (lambda, rho, theta, ratio) with zeta = ratio * rho / theta, so
@@ -31,7 +20,6 @@ set ``scenarios/sosm_gains_fig15.yaml``).
 from __future__ import annotations
 
 import argparse
-import math
 import subprocess
 import sys
 import time
@@ -43,186 +31,17 @@ from typing import Any
 import numpy as np
 import yaml
 
-from components.physics.ground_motion_core import GroundMotion, read_record
-from components.physics.monolithic import SystemSetup, Trajectory
-from components.physics.mre_isolator_core import TABLE2, GeneralizedCoefficients
-from components.physics.shear_building_core import BuildingParams
-from components.physics.sosm_controller_core import HAND_PICKED_GAINS, SosmGains
+from components.physics.sosm_controller_core import SosmGains
 from mre_common.guard import invoked_as
-from orchestration.case_study.case_config import LoadedStudy, ObjectiveSpec, StudySpec, TuningSpec, load_study
+from orchestration.building_studies.in_process_model import DEFAULT_GAINS, NotMonolithic, system_setup
+from orchestration.building_studies.pool_arguments import add_pool_arguments
+from orchestration.building_studies.run_settings import run_overrides
+from orchestration.case_study.case_config import LoadedStudy, ObjectiveSpec, TuningSpec, load_study
+from orchestration.case_study.objective import evaluate_setting, objective
 from orchestration.engine_hooks import PROJECT_DIR, plan_scenario
-from orchestration.inprocess import simulate_coupled
 from orchestration.master.errors import ScenarioError
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import write_text
-
-DEFAULT_GAINS = HAND_PICKED_GAINS  # the hand-picked gains: the tuning's first point
-_IGNORED_ISOLATOR = {"x_identified", "x_limit", "i_max", "n_isolators"}
-
-
-class NotMonolithic(ValueError):
-    """The scenario sets parameters the in-process model does not represent."""
-
-
-def run_overrides(spec: StudySpec) -> tuple[str, ...]:
-    """Overrides every run of a study gets: the study's own, then the current limit of both units."""
-    return (*spec.overrides, f"isolator.i_max={spec.i_max}", f"controller.i_max={spec.i_max}")
-
-
-MONOLITHIC_UNITS = {"ground": "GroundMotionSource", "building": "ShearBuilding", "isolator": "MreIsolator",
-                    "controller": "SosmCurrentController"}
-"""The units (name: FMU model identifier) the in-process model represents: the paper's system."""
-
-
-def monolithic_problem(plan: SystemPlan) -> str | None:
-    """Why the in-process model cannot represent a planned scenario (another isolator FMU, a unit it lacks, such
-    as a coil lag), or None. The controller's FMU does not matter for a constant current."""
-    extra = sorted(set(plan.descriptions) - set(MONOLITHIC_UNITS))
-    if extra:
-        return f"the scenario has units the in-process model lacks: {', '.join(extra)}"
-    for unit, identifier in MONOLITHIC_UNITS.items():
-        desc = plan.descriptions.get(unit)
-        if desc is None:
-            return f"the scenario has no unit {unit!r}"
-        if unit != "controller" and desc.model_identifier and desc.model_identifier != identifier:
-            return f"{unit} is {desc.model_identifier}, the in-process model has {identifier} only"
-    return None
-
-
-def system_setup(plan: SystemPlan, passive_current: float | None, gains: SosmGains | None = None) -> SystemSetup:
-    """In-process model of a planned scenario; ``passive_current`` None means SOSM with ``gains``.
-
-    NotMonolithic when the scenario is not the paper's system (:func:`monolithic_problem`) or sets parameters
-    the model does not represent."""
-    problem = monolithic_problem(plan)
-    if problem is not None:
-        raise NotMonolithic(f"{problem}: the in-process model (the Radau reference, the tuning) is the paper's system "
-                            "only (a study on another plant: reference.enabled: false)")
-    par = plan.parameters
-    ground = par.get("ground", {})
-    motion = GroundMotion(read_record(plan.data_files["ground.record"]), scale=float(ground.get("scale", 1.0)),
-                          time_scale=float(ground.get("time_scale", 1.0)))
-    b = BuildingParams.dyke()
-    values = {"m": list(b.m), "k": list(b.k), "c": list(b.c)}
-    for name, value in par.get("building", {}).items():
-        kind, _, j = name.partition("_")
-        if kind not in values or not j.isdigit() or int(j) >= len(values[kind]):
-            raise NotMonolithic(f"building parameter {name} is not represented in the in-process model")
-        values[kind][int(j)] = float(value)
-    building = BuildingParams(m=tuple(values["m"]), k=tuple(values["k"]), c=tuple(values["c"]))
-    iso = par.get("isolator", {})
-    coeffs = TABLE2.as_dict()
-    for name, value in iso.items():
-        if name in coeffs:
-            coeffs[name] = float(value)
-        elif name not in _IGNORED_ISOLATOR:
-            raise NotMonolithic(f"isolator parameter {name} is not represented in the in-process model")
-    i_max = float(iso.get("i_max", 3.0))
-    if gains is None:
-        gains = DEFAULT_GAINS
-    return SystemSetup(motion, building, GeneralizedCoefficients(**coeffs), int(iso.get("n_isolators", 2)), i_max,
-                       passive_current, gains)
-
-
-def peak_values(tr: Trajectory, i_limit: float | None = None) -> dict[str, float]:
-    """Peaks and current statistics of a trajectory.
-
-    a3: peak top-floor absolute acceleration [m/s^2]; d: peak drift, all storeys [m]; x0: peak
-    base displacement [m]; i_mean, i_min, i_max: current [A]; s_bound: share of the time at
-    ``i_limit`` [A] (the controller's limit; None: the largest current of the run), s_zero:
-    share at 0 A (both within 1e-6 A).
-    """
-    i = tr.i
-    limit = float(np.max(i)) if i_limit is None else float(i_limit)
-    return {"a3": float(np.max(np.abs(tr.a[:, -1]))), "d": float(np.max(np.abs(tr.drift))),
-            "x0": float(np.max(np.abs(tr.x[:, 0]))), "i_mean": float(np.mean(i)), "i_min": float(np.min(i)),
-            "i_max": float(np.max(i)), "i_limit": limit, "s_bound": float(np.mean(i >= limit - 1e-6)),
-            "s_zero": float(np.mean(i <= 1e-6))}
-
-
-def objective(peaks: dict[str, float], off: dict[str, float], obj: ObjectiveSpec) -> float:
-    """The dimensionless objective J of the module docstring (lower is better; passive-off has J = 1 + penalty)."""
-    if not all(math.isfinite(peaks[k]) for k in ("a3", "d", "x0")):
-        return math.inf
-    j = (obj.w_acc * peaks["a3"] / off["a3"] + obj.w_drift * peaks["d"] / off["d"]
-         + obj.penalty * max(0.0, peaks["x0"] / obj.x_limit - 1.0))
-    if obj.w_saturation:
-        j += obj.w_saturation * peaks["s_bound"]
-    if obj.w_zero:
-        j += obj.w_zero * peaks["s_zero"]
-    if obj.w_mean_current:
-        j += obj.w_mean_current * peaks["i_mean"] / peaks["i_limit"]
-    return j
-
-
-def _simulate(setup: SystemSetup, plan: SystemPlan, stop_time: float | None = None) -> Trajectory:
-    sim = plan.loaded.scenario.simulation
-    t_stop = sim.stop_time if stop_time is None else min(stop_time, sim.stop_time)
-    extra = {"inputs": sim.inputs} if hasattr(sim, "inputs") else {}  # the master's input estimate, if it has one
-    return simulate_coupled(setup, sim.step, round((t_stop - sim.start_time) / sim.step), sim.algorithm, **extra)
-
-
-def evaluate_setting(plan: SystemPlan, setting: float | SosmGains, stop_time: float | None = None
-                     ) -> dict[str, float]:
-    """Peaks and current statistics of one setting: a passive current [A] (a float) or SOSM gains."""
-    if isinstance(setting, SosmGains):
-        return peak_values(_simulate(system_setup(plan, None, setting), plan, stop_time), setting.i_max)
-    setup = system_setup(plan, float(setting))
-    return peak_values(_simulate(setup, plan, stop_time), setup.i_max)
-
-
-def cosimulated_peaks(plan: SystemPlan, current: float) -> dict[str, float]:
-    """Peaks and current statistics of a co-simulation of the plan's FMUs at a constant current [A] (the scenario's
-    controller unit in ``mode: passive``): for a plant the in-process model does not represent. ValueError if
-    the run does not complete; ``valid`` and ``invalid_reasons`` as the run's summary says (an invalid run is not
-    ranked by :func:`sweep_currents`)."""
-    import dataclasses
-    import tempfile
-
-    from orchestration.master.session import run_plan
-
-    params = {u: dict(v) for u, v in plan.parameters.items()}
-    params.setdefault("controller", {}).update({"mode": "passive", "i_passive": float(current)})
-    with tempfile.TemporaryDirectory(prefix="mre-cosim-sweep-") as tmp:
-        outcome = run_plan(dataclasses.replace(plan, parameters=params), Path(tmp) / "run", plots=False)
-        if not outcome.result.complete:
-            raise ValueError(f"the co-simulation at {current:g} A did not complete: {outcome.result.error}")
-        validity = {"valid": bool(outcome.summary.get("valid", True)),
-                    "invalid_reasons": list(outcome.summary.get("invalid_reasons") or [])}
-        rec = outcome.recorder
-        cols = {name: rec.column(name) for name in ("building.a_3", "building.x_0", "controller.i")}
-        drifts = [rec.column(f"building.drift_{j}") for j in (1, 2, 3)]
-    i = cols["controller.i"]
-    return {"a3": float(np.max(np.abs(cols["building.a_3"]))), "d": float(max(np.max(np.abs(d)) for d in drifts)),
-            "x0": float(np.max(np.abs(cols["building.x_0"]))), "i_mean": float(np.mean(i)),
-            "i_min": float(np.min(i)), "i_max": float(np.max(i)), "i_limit": float(np.max(i)),
-            "s_bound": float(np.mean(i >= np.max(i) - 1e-6)), "s_zero": float(np.mean(i <= 1e-6)), **validity}
-
-
-def sweep_currents(plan: SystemPlan, currents: list[float], obj: ObjectiveSpec) -> dict[str, Any]:
-    """Objective of every constant current [A] on one planned record; the best is the lowest J (ties: lower current).
-
-    In-process physics for the paper's system; a co-simulation of the scenario's FMUs per current for any other
-    plant (:func:`monolithic_problem`: e.g. the nominal plant's Bouc-Wen isolators and coil lag)."""
-    evaluate: Callable[[float], dict[str, float]]
-    if monolithic_problem(plan) is None:
-        def evaluate(i: float) -> dict[str, float]:
-            return evaluate_setting(plan, i)
-    else:
-        def evaluate(i: float) -> dict[str, float]:
-            return cosimulated_peaks(plan, i)
-    off = evaluate(0.0)
-    rows = []
-    for i in currents:
-        p = off if i == 0.0 else evaluate(i)
-        rows.append({"current_A": i, **p, "J": objective(p, off, obj)})
-    valid = [r for r in rows if r.get("valid", True)]  # a co-simulation that says it is invalid is not ranked
-    if not valid:
-        raise ValueError("no constant current gave a valid run: " + "; ".join(
-            f"{r['current_A']:g} A: {', '.join(r.get('invalid_reasons', []))}" for r in rows))
-    best = min(valid, key=lambda r: (r["J"], r["current_A"]))
-    return {"rows": rows, "best_current_A": best["current_A"], "best_J": best["J"]}
-
 
 TUNED = ("lam", "rho", "theta", "ratio")  # the tuned dimensions; "s_release" follows if the bounds name it
 
@@ -400,21 +219,6 @@ def check_gains(plan: SystemPlan, gains: SosmGains, obj: ObjectiveSpec,
     return out
 
 
-def read_gains(path: Path) -> tuple[SosmGains, dict[str, Any]]:
-    """Gains and the whole document from a gains file; raises ScenarioError if missing or invalid."""
-    if not path.is_file():
-        raise ScenarioError(f"SOSM gains file {path} does not exist: run "
-                            f"'python orchestration/tune.py <study.yaml>' first (see docs/case_study.md)")
-    try:
-        doc = yaml.safe_load(path.read_text())
-        g = doc["gains"]
-        gains = SosmGains(lam=float(g["lambda"]), rho=float(g["rho"]), zeta=float(g["zeta"]),
-                          theta=float(g["theta"]), i_max=float(g["i_max"]), s_release=float(g.get("s_release", 0.0)))
-    except (yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
-        raise ScenarioError(f"{path}: not a valid SOSM gains file ({exc})") from None
-    return gains, doc
-
-
 EVALUATION_COLUMNS = ("lambda", "rho", "zeta", "theta", "J")
 RECORD_COLUMNS = ("a3", "d", "x0", "i_mean", "s_bound", "s_zero")
 
@@ -550,9 +354,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, help="gains file to write (default: the gain set's file)")
     parser.add_argument("--force", action="store_true", help="replace an existing gains file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--scheduler", metavar="ADDRESS", help="fan the sample evaluations and checks out on an "
-                        "existing Dask cluster (default: DASK_SCHEDULER_ADDRESS, else a local one)")
-    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: one per core)")
+    add_pool_arguments(parser)  # the sample evaluations and checks fan out on the pool
     return parser.parse_args(argv)
 
 

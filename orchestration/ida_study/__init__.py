@@ -4,5 +4,7 @@
 ``ida_jobs`` is its job on the batch pool, ``ida_records`` the typed records between run and
 report; the report is ``ida_metrics`` (result rows, fragility fits, tables), ``ida_figures`` and
 ``ida_rendering`` (Markdown, HTML), assembled by ``ida_report``. ``suites`` reads record suites,
-``intensity`` measures PGA and Sa, ``fragility`` fits lognormal fragility curves.
+``intensity`` measures PGA and Sa, ``fragility`` fits lognormal fragility curves. What it shares
+with the case study (strategies, run settings, the in-process model, run metrics, ...) is in
+:mod:`orchestration.building_studies`.
 """

@@ -5,7 +5,7 @@ pydantic (unknown keys refused). Every problem -- of the file, of the suite (unk
 a folder without a readable record), of the strategies and the gains -- is collected into
 one :class:`~orchestration.master.errors.ScenarioError` before anything is computed.
 
-Strategies are the case study's strategy entries (:mod:`orchestration.case_study.strategies`):
+Strategies are the case study's strategy entries (:mod:`orchestration.building_studies.strategies`):
 the shipped ``scenarios/strategies.yaml``, then the study's ``strategy_files``, then its
 ``strategy_definitions`` (:attr:`LoadedIda.library`); ``{name, overrides}`` entries stay as before.
 """
@@ -19,13 +19,13 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-from orchestration.case_study.case_config import apply_overrides
-from orchestration.case_study.strategies import (
+from orchestration.building_studies.strategies import (
     BEST,
     Strategy,
     StrategyEntry,
     strategy_library,
 )
+from orchestration.building_studies.study_file import apply_overrides
 from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems

@@ -1,10 +1,15 @@
-"""The IDA's job, as it runs on a Dask worker (:mod:`orchestration.batch`): one record component at one scale."""
+"""The IDA's job, as it runs on a Dask worker (:mod:`orchestration.batch`): one record component at one scale.
+
+Its payload and value are plain data (they cross into another process and into ``jobs/``), read and written
+through their records: :class:`IdaInputs` (besides the plan and its files), :class:`IdaRunResult`.
+"""
 
 from __future__ import annotations
 
 import math
 import tempfile
 import time
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +23,48 @@ COLLAPSED_STATUS = "collapsed"
 # The code that decides this job's numbers, besides the engine's (orchestration.batch.portable.job_key): every
 # project module this one imports, directly or through others (orchestration.batch.code_sources).
 CODE_SOURCES = ("module:orchestration.ida_study.ida_jobs",)
+
+
+@dataclass(frozen=True)
+class IdaInputs:
+    """The inputs of one IDA run besides its plan: the amplitude scale, the masses [kg] (base first) and a
+    ShearBuilding's storey constants (``k``, ``c``, ``pdelta`` per storey: the residual drift; None: another
+    building unit)."""
+
+    scale: float
+    masses: list[float]
+    storeys: dict[str, list[float]] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> IdaInputs:
+        return cls(scale=float(d["scale"]), masses=d["masses"], storeys=d.get("storeys"))
+
+
+@dataclass(frozen=True)
+class IdaRunResult:
+    """How one IDA run ended: its status (:func:`run_status`), peaks and RMS values (units of peaks.csv, None where
+    not finite), timing and the run's numerical validity."""
+
+    status: str
+    error: str | None
+    end_time_s: float | None = None  # [s]
+    steps: int | None = None
+    run_wall_time_s: float | None = None  # [s]
+    metrics: dict[str, float | None] = field(default_factory=dict)
+    valid: bool | None = None  # None: a result stored before runs said so
+    invalid_reasons: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> IdaRunResult:
+        return cls(status=d["status"], error=d.get("error"), end_time_s=d.get("end_time_s"), steps=d.get("steps"),
+                   run_wall_time_s=d.get("run_wall_time_s"), metrics=d.get("metrics") or {}, valid=d.get("valid"),
+                   invalid_reasons=list(d.get("invalid_reasons") or []))
 
 
 def run_status(complete: bool, error: str | None, status: str) -> str:
@@ -56,11 +103,12 @@ def residual_drifts(ts: dict[str, Any], storeys: dict[str, list[float]] | None) 
 
 
 def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """One IDA run: the plan at ``payload["scale"]``; peaks and RMS values (units of peaks.csv), status, timing."""
-    from orchestration.case_study.analysis import run_metrics
+    """One IDA run: the plan and its files, at the scale of its :class:`IdaInputs`; an :class:`IdaRunResult`."""
+    from orchestration.building_studies.run_metrics import run_metrics
     from orchestration.master.session import run_plan
 
-    plan, _ = job_plan(payload, {"ground": {"scale": float(payload["scale"])}})
+    inputs = IdaInputs.from_json(payload)
+    plan, _ = job_plan(payload, {"ground": {"scale": inputs.scale}})
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="mre-cosim-ida-") as tmp:
         outcome = run_plan(plan, Path(tmp) / "run", plots=False, progress=False)
@@ -71,14 +119,14 @@ def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
     error = str(result.error) if result.error else None
     status = run_status(result.complete, error, result.status)
     try:
-        metrics = run_metrics(ts, payload["masses"]) if rec.count > 1 else {}
+        metrics = run_metrics(ts, inputs.masses) if rec.count > 1 else {}
         if metrics:
-            metrics.update(residual_drifts(ts, payload.get("storeys")))
+            metrics.update(residual_drifts(ts, inputs.storeys))
     except KeyError as exc:  # a swapped unit without one of the variables
         metrics = {}
         error = error or f"variable {exc} not recorded"
     clean = {k: (float(v) if v is not None and math.isfinite(v) else None) for k, v in metrics.items()}
-    return {"status": status, "error": error, "end_time_s": float(result.end_time), "steps": result.steps_done,
-            "run_wall_time_s": time.perf_counter() - started, "metrics": clean,
-            "valid": outcome.summary.get("valid"),
-            "invalid_reasons": list(outcome.summary.get("invalid_reasons") or [])}
+    return IdaRunResult(status=status, error=error, end_time_s=float(result.end_time), steps=result.steps_done,
+                        run_wall_time_s=time.perf_counter() - started, metrics=clean,
+                        valid=outcome.summary.get("valid"),
+                        invalid_reasons=list(outcome.summary.get("invalid_reasons") or [])).to_json()

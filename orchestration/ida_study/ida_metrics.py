@@ -6,8 +6,6 @@ columns); indices are against passive-off at the same component and level.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mre_common.atomic_files import atomic_write
-from orchestration.case_study.analysis import INDEX_COLUMNS, indices
+from orchestration.building_studies.run_metrics import INDEX_COLUMNS, csv_text, indices
 from orchestration.ida_study.ida_config import QUANTITIES, RATIO_QUANTITIES, IdaSpec
 from orchestration.ida_study.ida_jobs import COLLAPSED_STATUS
 from orchestration.ida_study.ida_records import ComponentInfo, RunOutcome
@@ -57,14 +55,15 @@ def result_row(comp: ComponentInfo, measure: str, level: float, strategy: str, r
     elif not res.ok:
         row.update(status=res.status, error=res.error, wall_time_s=res.wall_time_s)
     else:
-        v = res.value or {}
-        m = v.get("metrics") or {}
+        v = res.result
+        if v is None:  # ok without a value: a result the job did not write
+            raise ValueError(f"{label}: a finished run without its job's value")
+        m = v.metrics
         row.update({k: m.get(k) for k in PEAKS})
-        row.update(status=v["status"], error=v.get("error"), wall_time_s=res.wall_time_s,
-                   end_time_s=v.get("end_time_s"))
-        if v.get("valid") is not None:  # numerical validity (results stored before runs said so: unknown)
-            row.update(valid=bool(v["valid"]), invalid_reasons="; ".join(v.get("invalid_reasons") or []))
-        if off_metrics and v["status"] == "ok" and m:
+        row.update(status=v.status, error=v.error, wall_time_s=res.wall_time_s, end_time_s=v.end_time_s)
+        if v.valid is not None:  # numerical validity (results stored before runs said so: unknown)
+            row.update(valid=bool(v.valid), invalid_reasons="; ".join(v.invalid_reasons))
+        if off_metrics and v.status == "ok" and m:
             row.update(indices(_no_none(m), _no_none(off_metrics)))
     return {c: row.get(c) for c in COLUMNS}
 
@@ -76,7 +75,8 @@ def result_rows(components: list[ComponentInfo], measure: str, results: dict[str
     for comp in components:
         for level in levels:
             off = results.get(run_label(comp.id, level, "passive-off"))
-            off_metrics = off.value["metrics"] if off and off.ok and off.value["status"] == "ok" else None
+            done = off.result if off is not None else None
+            off_metrics = done.metrics if done is not None and done.status == "ok" else None
             rows += [result_row(comp, measure, level, s, results.get(run_label(comp.id, level, s)), off_metrics)
                      for s in strategies]
     return rows
@@ -178,17 +178,7 @@ def fragility_rows(fits: dict[str, dict[str, Fit]], spec: IdaSpec) -> list[dict[
 
 def table_csv(columns: tuple[str, ...] | list[str], rows: list[dict[str, Any]]) -> str:
     """CSV text (quoted where needed; floats at full precision, missing as empty)."""
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(columns)
-    for row in rows:
-        cells = []
-        for c in columns:
-            v = row.get(c)
-            cells.append("" if v is None or (isinstance(v, float) and math.isnan(v)) else
-                         repr(float(v)) if isinstance(v, float) and not isinstance(v, bool) else v)
-        writer.writerow(cells)
-    return buf.getvalue()
+    return csv_text(columns, rows)
 
 
 def write_tables(folder: Path, rows: list[dict[str, Any]]) -> None:

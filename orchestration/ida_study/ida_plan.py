@@ -18,10 +18,10 @@ from typing import Any
 
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
-from orchestration.case_study.case_jobs import RECORDED
-from orchestration.case_study.case_plan import every_step_problem
-from orchestration.case_study.strategies import Strategy, check_strategy
-from orchestration.case_study.tuning import NotMonolithic, read_gains, system_setup
+from orchestration.building_studies.gains_file import read_gains
+from orchestration.building_studies.in_process_model import NotMonolithic, system_setup
+from orchestration.building_studies.run_settings import RECORDED, every_step_problem
+from orchestration.building_studies.strategies import Strategy, check_strategy
 from orchestration.engine_hooks import plan_scenario
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
 from orchestration.ida_study.intensity import isolated_period, measure
@@ -167,7 +167,7 @@ def _strategies(loaded: LoadedIda, scenario: Path, common: tuple[str, ...], prob
     strategies whose controller FMU has no current limit (:func:`run_commons`) and the named strategies' entries.
 
     A named strategy is an entry of the strategy files, as in the case study
-    (:mod:`orchestration.case_study.strategies`): the controller FMU, its parameters, its gain set and its
+    (:mod:`orchestration.building_studies.strategies`): the controller FMU, its parameters, its gain set and its
     connections become overrides of the system scenario. An entry with its own FMU or connections is checked
     on the scenario first, so a missing FMU or a connection to a variable it lacks is a problem at the entry's
     own key and line. ``{name, overrides}`` strategies are taken as written.

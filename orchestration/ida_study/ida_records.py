@@ -13,6 +13,8 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from orchestration.ida_study.ida_jobs import IdaRunResult
+
 
 def utc_now() -> str:
     """The time now, ISO 8601 in UTC (``2026-12-02T05:30:00Z``)."""
@@ -37,8 +39,9 @@ class ComponentInfo:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> ComponentInfo:
-        return cls(d["id"], d["record"], d["component"], d["source"], (d["window_s"][0], d["window_s"][1]),
-                   d["stop_time_s"], d["im"], d["pga_g"])
+        return cls(id=d["id"], record=d["record"], component=d["component"], source=d["source"],
+                   window_s=(d["window_s"][0], d["window_s"][1]), stop_time_s=d["stop_time_s"], im=d["im"],
+                   pga_g=d["pga_g"])
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,11 @@ class RunOutcome:
     worker: str | None = None
 
     @property
+    def result(self) -> IdaRunResult | None:
+        """The job's value as its record (None unless ``ok``)."""
+        return IdaRunResult.from_json(self.value) if self.ok and self.value else None
+
+    @property
     def run_status(self) -> str:
         """How the run ended: the job's own status (ok, diverged, ...) if it returned, else the batch's."""
         return self.value["status"] if self.ok and self.value else self.status
@@ -63,8 +71,8 @@ class RunOutcome:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> RunOutcome:
-        return cls(d.get("label", d.get("key", "")), bool(d["ok"]), d["status"], d.get("value"), d.get("error"),
-                   d.get("wall_time_s"), d.get("worker"))
+        return cls(label=d.get("label", d.get("key", "")), ok=bool(d["ok"]), status=d["status"], value=d.get("value"),
+                   error=d.get("error"), wall_time_s=d.get("wall_time_s"), worker=d.get("worker"))
 
 
 @dataclass

@@ -40,10 +40,11 @@ from mre_common.guard import invoked_as
 from orchestration.batch.pool import BatchPool, BatchUnavailable, JobResult, ProgressBar, scheduler_address
 from orchestration.batch.portable import file_bytes, job_key, plan_content
 from orchestration.batch.store import ResultStore, StoreError, check_folder, open_for_resume
-from orchestration.case_study.case_config import key_files
+from orchestration.building_studies.pool_arguments import add_pool_arguments
+from orchestration.building_studies.study_file import key_files
 from orchestration.ida_study import ida_jobs
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda, load_ida
-from orchestration.ida_study.ida_jobs import ida_job
+from orchestration.ida_study.ida_jobs import IdaInputs, ida_job
 from orchestration.ida_study.ida_metrics import ENDED, read_rows, result_rows, run_label
 from orchestration.ida_study.ida_plan import PreparedIda, RecordComponent, prepare_ida
 from orchestration.ida_study.ida_records import ComponentInfo, IdaInfo, RunOutcome, utc_now
@@ -97,8 +98,9 @@ def plan_runs(prepared: PreparedIda, store: ResultStore) -> tuple[list[PendingRu
                 pp = prepared.plans[(c.rec.id, s)]
                 label = run_label(c.rec.id, level, s)
                 scale = level / c.im
-                key = job_key("ida", {"job": label, "plan": plan_content(pp), "scale": scale,
-                                      "masses": prepared.masses, "storeys": prepared.storeys}, ida_jobs.CODE_SOURCES)
+                inputs = IdaInputs(scale, prepared.masses, prepared.storeys)
+                key = job_key("ida", {"job": label, "plan": plan_content(pp), **inputs.to_json()},
+                              ida_jobs.CODE_SOURCES)
                 labels[key] = label
                 old = store.get(key)
                 if old is not None:
@@ -116,7 +118,7 @@ def payloads(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun]) 
     shared = {k: pool.share(pp, dedupe=False) for k, pp in plans.items()}
     return [{"plan": shared[(run.component.rec.id, run.strategy)],
              "files": {sha: files[sha] for sha in plans[(run.component.rec.id, run.strategy)].shas},
-             "scale": run.scale, "masses": prepared.masses, "storeys": prepared.storeys} for run in pending]
+             **IdaInputs(run.scale, prepared.masses, prepared.storeys).to_json()} for run in pending]
 
 
 def compute(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun], labels: dict[str, str],
@@ -124,7 +126,8 @@ def compute(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun], l
     """Run the pending runs on the pool, each result stored as it ends; True if interrupted (Ctrl-C)."""
 
     def done(res: JobResult) -> None:
-        outcome = RunOutcome(labels[res.key], res.ok, res.status, res.value, res.error, res.wall_time_s, res.worker)
+        outcome = RunOutcome(label=labels[res.key], ok=res.ok, status=res.status, value=res.value, error=res.error,
+                             wall_time_s=res.wall_time_s, worker=res.worker)
         store.put(res.key, outcome.to_json())
         results[outcome.label] = outcome
         bar.done(outcome.run_status in ENDED)
@@ -185,9 +188,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a study key (VALUE as YAML), e.g. --set 'intensity.levels=[0.1, 0.2]'")
     parser.add_argument("--out", type=Path, help="study folder to create (must not exist or be empty)")
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="run on an existing Dask cluster (default: DASK_SCHEDULER_ADDRESS, else a local one)")
-    parser.add_argument("--workers", type=int, help="local cluster: worker processes (default: one per core)")
+    add_pool_arguments(parser)
     parser.add_argument("--resume", type=Path, metavar="DIR", help="finish a study folder: compute what is missing")
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate tables, figures and report of DIR")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

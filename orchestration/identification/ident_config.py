@@ -108,64 +108,78 @@ def validate(doc: Any, path: Path | None = None) -> IdentificationConfig:
     problems: list[str] = []
     cfg = _check(doc, SCHEMA, "", problems)
     if not problems:
-        d = cfg["data"]
-        if d["source"] not in ("synthetic", "folder"):
-            problems.append(f"data.source: must be 'synthetic' or 'folder', got {d['source']!r}")
-        if d["source"] == "folder" and not d["folder"]:
-            problems.append("data.folder: required when data.source is 'folder'")
-        s = d["synthetic"]
-        if s["model"] not in ("hyperbolic", "bouc_wen"):
-            problems.append(f"data.synthetic.model: must be 'hyperbolic' or 'bouc_wen', got {s['model']!r}")
-        for key, low in (("repeats", 1), ("cycles", 2)):
-            if s[key] < low:
-                problems.append(f"data.synthetic.{key}: must be >= {low}")
-        if s["sampling_hz"] <= 0:
-            problems.append("data.synthetic.sampling_hz: must be > 0")
-        for key, value in s["noise"].items():
-            if value < 0:
-                problems.append(f"data.synthetic.noise.{key}: must be >= 0")
-        conds = d["conditions"]
-        if isinstance(conds, str) and conds != "all":
-            problems.append(
-                "data.conditions: must be 'all' or a list of [frequency_hz, amplitude_mm, current_a]"
-            )
-        elif isinstance(conds, list):
-            for k, item in enumerate(conds):
-                ok = (
-                    isinstance(item, list)
-                    and len(item) == 3
-                    and all(isinstance(v, _NUM) and not isinstance(v, bool) for v in item)
-                )
-                if not ok:
-                    problems.append(f"data.conditions[{k}]: must be [frequency_hz, amplitude_mm, current_a]")
-                elif d["source"] == "synthetic" and tuple(float(v) for v in item) not in TEST_MATRIX:
-                    problems.append(f"data.conditions[{k}]: {item} is not in the paper's test matrix")
-        if cfg["fit"]["first_cycle"] < 0 or cfg["fit"]["cycles"] < 1:
-            problems.append("fit: first_cycle must be >= 0 and cycles >= 1")
-        for k, name in enumerate(cfg["identifiers"]):
-            if name not in IDENTIFIERS:
-                problems.append(
-                    f"identifiers[{k}]: unknown identifier {name!r} (known: {', '.join(IDENTIFIERS)})"
-                )
-        if not cfg["identifiers"]:
-            problems.append("identifiers: list at least one identifier")
-        f = cfg["ffoa"]
-        if f["n_pop"] < 2 or f["n_iter"] < 1 or f["step"] <= 0:
-            problems.append("ffoa: n_pop must be >= 2, n_iter >= 1, step > 0")
-        st = cfg["structured"]
-        if not 0 < st["beta_min"] < st["beta_max"] or st["n_grid"] < 3:
-            problems.append("structured: need 0 < beta_min < beta_max and n_grid >= 3")
-        if cfg["model_selection"]["max_nfev"] < 1:
-            problems.append("model_selection.max_nfev: must be >= 1")
-        if cfg["plant_uncertainty"]["samples"] < 2:
-            problems.append("plant_uncertainty.samples: must be >= 2 (a covariance needs two samples)")
-        a = cfg["acceptance"]
-        if a["window"] < 1 or a["rel_tol"] < 0 or a["max_nrmse"] <= 0:
-            problems.append("acceptance: window must be >= 1, rel_tol >= 0, max_nrmse > 0")
+        _check_data(cfg["data"], problems)
+        _check_methods(cfg, problems)
     if problems:
         where = f"{path}: " if path else ""
         raise ConfigError(where + "invalid configuration:\n" + "\n".join(f"  - {p}" for p in problems))
     return IdentificationConfig(cfg, path)
+
+
+def _check_data(d: dict[str, Any], problems: list[str]) -> None:
+    """The ``data`` section (its types already checked): source, synthetic data, conditions."""
+    if d["source"] not in ("synthetic", "folder"):
+        problems.append(f"data.source: must be 'synthetic' or 'folder', got {d['source']!r}")
+    if d["source"] == "folder" and not d["folder"]:
+        problems.append("data.folder: required when data.source is 'folder'")
+    s = d["synthetic"]
+    if s["model"] not in ("hyperbolic", "bouc_wen"):
+        problems.append(f"data.synthetic.model: must be 'hyperbolic' or 'bouc_wen', got {s['model']!r}")
+    for key, low in (("repeats", 1), ("cycles", 2)):
+        if s[key] < low:
+            problems.append(f"data.synthetic.{key}: must be >= {low}")
+    if s["sampling_hz"] <= 0:
+        problems.append("data.synthetic.sampling_hz: must be > 0")
+    for key, value in s["noise"].items():
+        if value < 0:
+            problems.append(f"data.synthetic.noise.{key}: must be >= 0")
+    conds = d["conditions"]
+    if isinstance(conds, str) and conds != "all":
+        problems.append(
+            "data.conditions: must be 'all' or a list of [frequency_hz, amplitude_mm, current_a]"
+        )
+    elif isinstance(conds, list):
+        _check_conditions(conds, d["source"] == "synthetic", problems)
+
+
+def _check_conditions(conds: list[Any], synthetic: bool, problems: list[str]) -> None:
+    """Each listed condition a [frequency_hz, amplitude_mm, current_a]; for synthetic data one of the paper's."""
+    for k, item in enumerate(conds):
+        ok = (
+            isinstance(item, list)
+            and len(item) == 3
+            and all(isinstance(v, _NUM) and not isinstance(v, bool) for v in item)
+        )
+        if not ok:
+            problems.append(f"data.conditions[{k}]: must be [frequency_hz, amplitude_mm, current_a]")
+        elif synthetic and tuple(float(v) for v in item) not in TEST_MATRIX:
+            problems.append(f"data.conditions[{k}]: {item} is not in the paper's test matrix")
+
+
+def _check_methods(cfg: dict[str, Any], problems: list[str]) -> None:
+    """The sections after ``data`` (their types already checked): fit, identifiers and their settings."""
+    if cfg["fit"]["first_cycle"] < 0 or cfg["fit"]["cycles"] < 1:
+        problems.append("fit: first_cycle must be >= 0 and cycles >= 1")
+    for k, name in enumerate(cfg["identifiers"]):
+        if name not in IDENTIFIERS:
+            problems.append(
+                f"identifiers[{k}]: unknown identifier {name!r} (known: {', '.join(IDENTIFIERS)})"
+            )
+    if not cfg["identifiers"]:
+        problems.append("identifiers: list at least one identifier")
+    f = cfg["ffoa"]
+    if f["n_pop"] < 2 or f["n_iter"] < 1 or f["step"] <= 0:
+        problems.append("ffoa: n_pop must be >= 2, n_iter >= 1, step > 0")
+    st = cfg["structured"]
+    if not 0 < st["beta_min"] < st["beta_max"] or st["n_grid"] < 3:
+        problems.append("structured: need 0 < beta_min < beta_max and n_grid >= 3")
+    if cfg["model_selection"]["max_nfev"] < 1:
+        problems.append("model_selection.max_nfev: must be >= 1")
+    if cfg["plant_uncertainty"]["samples"] < 2:
+        problems.append("plant_uncertainty.samples: must be >= 2 (a covariance needs two samples)")
+    a = cfg["acceptance"]
+    if a["window"] < 1 or a["rel_tol"] < 0 or a["max_nrmse"] <= 0:
+        problems.append("acceptance: window must be >= 1, rel_tol >= 0, max_nrmse > 0")
 
 
 def load_config(path: str | Path) -> IdentificationConfig:

@@ -103,16 +103,16 @@ MapFunction = Callable[[Callable[[Any], Any], Sequence[Any]], Iterable[Any]]
 """Like the builtin ``map``: apply a module-level function to every item (possibly in other
 processes) and give the results in the order of the items."""
 
-# CPU cost of one FFOA fly evaluation [s], measured on the 2-core machine (paper fit window,
-# 5 repeats; Bouc-Wen with the compiled kernel, or on the numpy path): enough to tell whether
-# spreading the conditions over processes is worth it. The structured identifier takes
+# Rough CPU cost of one FFOA fly evaluation [s] (paper fit window, 5 repeats; Bouc-Wen with the
+# compiled kernel, or on the numpy path): enough to tell whether spreading the conditions over
+# processes is worth it. The structured identifier takes
 # milliseconds per condition.
 FLY_EVALUATION_S = {"hyperbolic-ffoa": 1.7e-6, "bouc_wen-ffoa": 1.8e-5, "bouc_wen-ffoa/numpy": 3e-4}
 PARALLEL_MIN_S = 30.0
 """By default identify_all uses its map function only for FFOA work estimated above this
-[s]: starting the studies' engine (a local Dask cluster of two workers) costs about 12 s of
-CPU and 4-8 s of wall time, more than it saves on the default run's 11 s of FFOA (measured:
-32-35 s in one process against 39-60 s with two workers, load average 8-9)."""
+[s]: starting the studies' engine (a local Dask cluster of two workers) costs seconds of CPU
+and of wall time, more than it saves on the default run's FFOA, which one process finishes
+sooner than two workers."""
 
 
 def estimated_ffoa_seconds(conditions: int, identifiers: Sequence[str], n_pop: int, n_iter: int) -> float:

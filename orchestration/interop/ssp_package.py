@@ -486,30 +486,10 @@ def _annotated_integer(text: str, ann: etree._Element) -> int:
 def _read_parameters(reader: _Reader, unit: str, comp: etree._Element) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for b, binding in enumerate(comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)):
-        key = f"units.{unit}.parameters"
-        if binding.find("ssd:ParameterMapping", NS) is not None:
-            reader.problem(f"component '{unit}': parameter mappings are not supported", key, SSD_FILE, binding)
+        found = _bound_parameter_set(reader, unit, b, binding)
+        if found is None:
             continue
-        if binding.get("sourceBase", "SSD") != "SSD":
-            reader.problem(f"component '{unit}': only parameter sets relative to the SSD are supported",
-                           key, SSD_FILE, binding)
-            continue
-        source = binding.get("source")
-        if source is not None:
-            member = source
-            root = reader.parse(source, "SystemStructureParameterValues.xsd", key)
-            if root is None and reader.member(source) is None:
-                reader.problem(f"component '{unit}': parameter set '{source}' is not in the package",
-                               key, SSD_FILE, binding)
-            if root is None:
-                continue
-        else:
-            member = SSD_FILE
-            root = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
-            if root is None:
-                reader.problem(f"component '{unit}': parameter binding {b} has neither a source nor values",
-                               key, SSD_FILE, binding)
-                continue
+        member, root = found
         prefix = binding.get("prefix", "")
         for p in root.findall("ssv:Parameters/ssv:Parameter", NS):
             name = p.get("name", "")
@@ -517,37 +497,72 @@ def _read_parameters(reader: _Reader, unit: str, comp: etree._Element) -> dict[s
                 name = name[len(prefix):]
             pkey = ("units", unit, "parameters", name)
             reader.at(pkey, member, p)
-            try:
-                typed = _typed_value(p)
-            except ValueError as exc:
-                reader.problem(f"component '{unit}', parameter '{name}': {exc}", ".".join(pkey), member, p)
-                continue
-            if typed is None or typed[1] is None:
-                kind = "no value" if typed is None else f"a {typed[0]} value"
-                reader.problem(f"component '{unit}', parameter '{name}': {kind} is not supported",
-                               ".".join(pkey), member, p)
-                continue
-            kind, value = typed
-            typed_ann = _annotation_of(p, "ssv", VALUE_ANNOTATION) if kind == "String" else None
-            if typed_ann is not None:
-                try:
-                    value = _annotated_integer(value, typed_ann)
-                except ValueError as exc:
-                    reader.problem(f"component '{unit}', parameter '{name}': {exc}", ".".join(pkey), member, p)
-                    continue
+            value = _parameter_value(reader, unit, name, member, p)
+            if value is not _SKIPPED:
                 params[name] = value
-                continue
-            ann = _annotation_of(p, "ssv", DATA_FILE_ANNOTATION) if kind == "String" else None
-            if ann is not None:
-                path = reader.member(value)
-                if path is None:
-                    reader.problem(f"component '{unit}', parameter '{name}': data file '{value}' is not in the package",
-                                   ".".join(pkey), member, p)
-                    continue
-                tag = ann.find("mre:DataFile", NS)
-                value = DataFile(str(path), "record" if tag is not None and tag.get("kind") == "record" else "data")
-            params[name] = value
     return params
+
+
+_SKIPPED = object()  # a parameter with a problem (reported): not read
+
+
+def _bound_parameter_set(reader: _Reader, unit: str, b: int,
+                         binding: etree._Element) -> tuple[str, etree._Element] | None:
+    """(package member, ssv:ParameterSet) of parameter binding ``b``; None after a problem reported."""
+    key = f"units.{unit}.parameters"
+    if binding.find("ssd:ParameterMapping", NS) is not None:
+        reader.problem(f"component '{unit}': parameter mappings are not supported", key, SSD_FILE, binding)
+        return None
+    if binding.get("sourceBase", "SSD") != "SSD":
+        reader.problem(f"component '{unit}': only parameter sets relative to the SSD are supported",
+                       key, SSD_FILE, binding)
+        return None
+    source = binding.get("source")
+    if source is not None:
+        root = reader.parse(source, "SystemStructureParameterValues.xsd", key)
+        if root is None and reader.member(source) is None:
+            reader.problem(f"component '{unit}': parameter set '{source}' is not in the package",
+                           key, SSD_FILE, binding)
+        return None if root is None else (source, root)
+    root = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
+    if root is None:
+        reader.problem(f"component '{unit}': parameter binding {b} has neither a source nor values",
+                       key, SSD_FILE, binding)
+        return None
+    return SSD_FILE, root
+
+
+def _parameter_value(reader: _Reader, unit: str, name: str, member: str, p: etree._Element) -> Any:
+    """The value of parameter ``p`` (an integer of an annotated String, a DataFile, ...); _SKIPPED after a
+    problem reported."""
+    where = f"units.{unit}.parameters.{name}"
+    try:
+        typed = _typed_value(p)
+    except ValueError as exc:
+        reader.problem(f"component '{unit}', parameter '{name}': {exc}", where, member, p)
+        return _SKIPPED
+    if typed is None or typed[1] is None:
+        kind = "no value" if typed is None else f"a {typed[0]} value"
+        reader.problem(f"component '{unit}', parameter '{name}': {kind} is not supported", where, member, p)
+        return _SKIPPED
+    kind, value = typed
+    typed_ann = _annotation_of(p, "ssv", VALUE_ANNOTATION) if kind == "String" else None
+    if typed_ann is not None:
+        try:
+            return _annotated_integer(value, typed_ann)
+        except ValueError as exc:
+            reader.problem(f"component '{unit}', parameter '{name}': {exc}", where, member, p)
+            return _SKIPPED
+    ann = _annotation_of(p, "ssv", DATA_FILE_ANNOTATION) if kind == "String" else None
+    if ann is None:
+        return value
+    path = reader.member(value)
+    if path is None:
+        reader.problem(f"component '{unit}', parameter '{name}': data file '{value}' is not in the package",
+                       where, member, p)
+        return _SKIPPED
+    tag = ann.find("mre:DataFile", NS)
+    return DataFile(str(path), "record" if tag is not None and tag.get("kind") == "record" else "data")
 
 
 def _read_settings(reader: _Reader, ssd: etree._Element) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -621,74 +636,89 @@ def _read_system(reader: _Reader, ssd: etree._Element) -> dict[str, Any]:
     connectors: dict[str, dict[str, str]] = {}
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         unit = comp.get("name", "")
-        key = f"units.{unit}.fmu"
         reader.at(("units", unit), SSD_FILE, comp)
         if comp.get("type", FMU_TYPE) != FMU_TYPE:
-            reader.problem(f"component '{unit}': type {comp.get('type')!r} is not an FMU", key, SSD_FILE, comp)
+            reader.problem(f"component '{unit}': type {comp.get('type')!r} is not an FMU", f"units.{unit}.fmu",
+                           SSD_FILE, comp)
             continue
-        source = comp.get("source", "")
-        path = reader.member(source)
-        declared = {c.get("name"): c.get("kind") for c in comp.findall("ssd:Connectors/ssd:Connector", NS)}
-        connectors[unit] = declared
-        data["units"][unit] = {"fmu": str(path) if path else source, "parameters": _read_parameters(reader, unit, comp)}
-        ann = _annotation_of(comp, "ssd", UNIT_ANNOTATION)
-        chosen = None if ann is None else ann.find("mre:Interface", NS)
-        if chosen is not None:
-            if chosen.get("name") is not None:
-                data["units"][unit]["interface"] = chosen.get("name")
-            if chosen.get("relativeTolerance") is not None:
-                try:
-                    data["units"][unit]["relative_tolerance"] = _number(chosen.get("relativeTolerance"))
-                except ValueError as exc:
-                    reader.problem(f"component '{unit}': relativeTolerance: {exc}", f"units.{unit}.relative_tolerance",
-                                   SSD_FILE, chosen)
-        hint = _annotation_of(comp, "ssd", OSP_ANNOTATION)
-        hint = None if hint is None else hint.find("osp:StepSizeHint", NS)
-        if hint is not None:
-            try:
-                data["units"][unit]["step"] = _number(hint.get("value"))
-            except ValueError as exc:
-                reader.problem(f"component '{unit}': StepSizeHint: {exc}", f"units.{unit}.step", SSD_FILE, hint)
-        if path is None:
-            reader.problem(f"component '{unit}': FMU '{source}' is not in the package", key, SSD_FILE, comp)
-            continue
-        try:
-            desc, _ = read_description(path, unit, data["units"][unit].get("interface"))
-        except FmuFormatError as exc:
-            reader.problem(f"component '{unit}': {exc}", key, SSD_FILE, comp)
-            continue
-        for c in comp.findall("ssd:Connectors/ssd:Connector", NS):
-            if c.get("name") not in desc.variables:
-                reader.problem(f"component '{unit}': connector '{c.get('name')}' is not a variable of its FMU "
-                               f"{source}", f"units.{unit}", SSD_FILE, c)
+        connectors[unit] = {c.get("name"): c.get("kind") for c in comp.findall("ssd:Connectors/ssd:Connector", NS)}
+        data["units"][unit] = _read_component(reader, unit, comp)
     for k, conn in enumerate(system.findall("ssd:Connections/ssd:Connection", NS)):
-        reader.at(("connections", k), SSD_FILE, conn)
-        ends = []
-        text = (f"connection {k} ({conn.get('startElement')}.{conn.get('startConnector')} -> "
-                f"{conn.get('endElement')}.{conn.get('endConnector')})")
-        for side in ("start", "end"):
-            element, connector = conn.get(f"{side}Element"), conn.get(f"{side}Connector")
-            if element is None:
-                reader.problem(f"{text}: connections to the system's own connectors are not supported",
-                               f"connections.{k}", SSD_FILE, conn)
-            elif element not in connectors:
-                names = ", ".join(connectors) or "none"
-                reader.problem(f"{text}: no component named '{element}' (components: {names})",
-                               f"connections.{k}", SSD_FILE, conn)
-            elif connector not in connectors[element]:
-                reader.problem(f"{text}: component '{element}' has no connector '{connector}'",
-                               f"connections.{k}", SSD_FILE, conn)
-            else:
-                ends.append(f"{element}.{connector}")
-        if conn.find("ssc:*", NS) is not None:  # LinearTransformation, BooleanMappingTransformation, ...
-            reader.problem(f"connection {k}: transformations are not supported", f"connections.{k}", SSD_FILE, conn)
-            continue
-        if len(ends) == 2:
-            ann = _annotation_of(conn, "ssd", CONNECTION_ANNOTATION)
-            coupling = None if ann is None else ann.find("mre:Coupling", NS)
-            delayed = coupling is not None and coupling.get("delayed") == "true"
-            data["connections"].append({"source": ends[0], "target": ends[1], "delayed": delayed})
+        connection = _read_connection(reader, k, conn, connectors)
+        if connection is not None:
+            data["connections"].append(connection)
     return data
+
+
+def _read_component(reader: _Reader, unit: str, comp: etree._Element) -> dict[str, Any]:
+    """The unit of an FMU component: its FMU, parameters and annotations; its connectors checked against the FMU."""
+    key = f"units.{unit}.fmu"
+    source = comp.get("source", "")
+    path = reader.member(source)
+    entry: dict[str, Any] = {"fmu": str(path) if path else source, "parameters": _read_parameters(reader, unit, comp)}
+    ann = _annotation_of(comp, "ssd", UNIT_ANNOTATION)
+    chosen = None if ann is None else ann.find("mre:Interface", NS)
+    if chosen is not None:
+        if chosen.get("name") is not None:
+            entry["interface"] = chosen.get("name")
+        if chosen.get("relativeTolerance") is not None:
+            try:
+                entry["relative_tolerance"] = _number(chosen.get("relativeTolerance"))
+            except ValueError as exc:
+                reader.problem(f"component '{unit}': relativeTolerance: {exc}", f"units.{unit}.relative_tolerance",
+                               SSD_FILE, chosen)
+    hint = _annotation_of(comp, "ssd", OSP_ANNOTATION)
+    hint = None if hint is None else hint.find("osp:StepSizeHint", NS)
+    if hint is not None:
+        try:
+            entry["step"] = _number(hint.get("value"))
+        except ValueError as exc:
+            reader.problem(f"component '{unit}': StepSizeHint: {exc}", f"units.{unit}.step", SSD_FILE, hint)
+    if path is None:
+        reader.problem(f"component '{unit}': FMU '{source}' is not in the package", key, SSD_FILE, comp)
+        return entry
+    try:
+        desc, _ = read_description(path, unit, entry.get("interface"))
+    except FmuFormatError as exc:
+        reader.problem(f"component '{unit}': {exc}", key, SSD_FILE, comp)
+        return entry
+    for c in comp.findall("ssd:Connectors/ssd:Connector", NS):
+        if c.get("name") not in desc.variables:
+            reader.problem(f"component '{unit}': connector '{c.get('name')}' is not a variable of its FMU "
+                           f"{source}", f"units.{unit}", SSD_FILE, c)
+    return entry
+
+
+def _read_connection(reader: _Reader, k: int, conn: etree._Element,
+                     connectors: dict[str, dict[str, str]]) -> dict[str, Any] | None:
+    """Connection ``k`` between two components' connectors; None after a problem reported."""
+    reader.at(("connections", k), SSD_FILE, conn)
+    ends = []
+    text = (f"connection {k} ({conn.get('startElement')}.{conn.get('startConnector')} -> "
+            f"{conn.get('endElement')}.{conn.get('endConnector')})")
+    for side in ("start", "end"):
+        element, connector = conn.get(f"{side}Element"), conn.get(f"{side}Connector")
+        if element is None:
+            reader.problem(f"{text}: connections to the system's own connectors are not supported",
+                           f"connections.{k}", SSD_FILE, conn)
+        elif element not in connectors:
+            names = ", ".join(connectors) or "none"
+            reader.problem(f"{text}: no component named '{element}' (components: {names})",
+                           f"connections.{k}", SSD_FILE, conn)
+        elif connector not in connectors[element]:
+            reader.problem(f"{text}: component '{element}' has no connector '{connector}'",
+                           f"connections.{k}", SSD_FILE, conn)
+        else:
+            ends.append(f"{element}.{connector}")
+    if conn.find("ssc:*", NS) is not None:  # LinearTransformation, BooleanMappingTransformation, ...
+        reader.problem(f"connection {k}: transformations are not supported", f"connections.{k}", SSD_FILE, conn)
+        return None
+    if len(ends) != 2:
+        return None
+    ann = _annotation_of(conn, "ssd", CONNECTION_ANNOTATION)
+    coupling = None if ann is None else ann.find("mre:Coupling", NS)
+    delayed = coupling is not None and coupling.get("delayed") == "true"
+    return {"source": ends[0], "target": ends[1], "delayed": delayed}
 
 
 def load_ssp(path: Path | str, overrides: tuple[str, ...] = (), workdir: Path | None = None) -> LoadedSsp:

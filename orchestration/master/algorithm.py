@@ -54,8 +54,8 @@ t + h, not at t).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, Literal
+from dataclasses import dataclass, field
+from typing import Any, Literal, TypedDict
 
 import numpy as np
 
@@ -81,22 +81,37 @@ _EXTRAPOLATION = (
 RULES = ("start", "fresh", "mean", "extrapolated", "grid")
 
 
+OpKind = Literal["set", "step", "get", "tset", "tget", "latch", "peek"]  # tset/tget: values of other types
+
+
+def _no_slots() -> np.ndarray:
+    return np.zeros(0, dtype=np.intp)
+
+
+class _Timing(TypedDict):
+    """When an op runs: in the base steps k with k % every == phase."""
+
+    every: int
+    phase: int
+
+
 @dataclass
 class ProgramOp:
     """One operation of a communication step: ``set`` inputs, ``step`` a unit, or ``get`` outputs."""
 
-    kind: Literal["set", "step", "get", "tset", "tget", "latch", "peek"]  # tset/tget: values of other types
+    kind: OpKind
     unit: Unit
-    handle: Any = None
-    slots: np.ndarray | None = None  # per value: its slot in the value arrays
+    handle: object = None  # set, get, peek: the unit's prepared references (what Unit.prepare returned)
+    slots: np.ndarray = field(default_factory=_no_slots)  # per value: its slot in the value arrays
     rules: np.ndarray | None = None  # set only: per value, an index into RULES
-    plan: Any = None  # set of a unit's connected inputs: its _InputPlan (the rules grouped)
+    plan: _InputPlan | None = None  # set of a unit's connected inputs: the rules grouped
     every: int = 1  # the op runs in the steps k with k % every == phase (a unit stepping every m base steps)
     phase: int = 0
     drivers: list[np.ndarray] | None = None  # set only: per value, the held slots whose change restarts its estimate
     fresh_drivers: list[np.ndarray] | None = None  # set: per value, the drivers whose jump is peeked; peek: its drivers
-    out_handle: Any = None  # peek only: the source output to read after setting the fresh drivers
+    out_handle: object = None  # peek only: the source output to read after setting the fresh drivers
     out_slot: int = -1  # peek only: the slot of that output (its peeked value goes to ``peeked[out_slot]``)
+    transfer: _TypedTransfer | None = None  # tset, tget: the values of one other type to set or read
 
     def __post_init__(self) -> None:
         # a plain ``set`` (propagation): the positions whose value comes from the grid values, or None
@@ -111,7 +126,7 @@ class _Transfer:
     """Read some outputs of a unit into slots, or set some inputs from slots."""
 
     unit: Unit
-    handle: Any
+    handle: object
     slots: np.ndarray
 
 
@@ -120,7 +135,7 @@ class _InputPlan:
     """How one unit's connected inputs are formed before it steps, grouped by rule."""
 
     unit: Unit
-    handle: Any
+    handle: object
     buffer: np.ndarray
     start: tuple[np.ndarray, np.ndarray]  # (positions in buffer, slots): value at t
     fresh: tuple[np.ndarray, np.ndarray]  # value at t + h
@@ -144,7 +159,7 @@ class _Restart:
     slot: int  # the source output's slot
     drivers: np.ndarray  # slots of the held sources it depends on
     fresh: np.ndarray  # those of them known before the consumer steps
-    peek: Any = None  # ProgramOp "peek" that evaluates the source output with the fresh drivers, or None
+    peek: ProgramOp | None = None  # ProgramOp "peek" that evaluates the source output with the fresh drivers, or None
 
 
 @dataclass
@@ -183,6 +198,10 @@ def usable_history(now: np.ndarray, before: np.ndarray, earlier: np.ndarray, dri
     if bool(np.any(before[drivers] != earlier[drivers])):
         return 2
     return 3
+
+
+def _no_grid(k: int) -> float:
+    raise ValueError("units with their own step need the base step: initialize(start, stop, step)")
 
 
 def _pair(items: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +261,7 @@ class CouplingAlgorithm:
         self._peeked = np.zeros(n)  # per slot: its value at t with the new held inputs (written by "peek" ops)
         self._known = 0  # how many history entries are real
         self._k = 0  # steps done
-        self._t_of: Callable[[int], float] | None = None  # the base grid (for the steps of units with periods)
+        self._t_of: Callable[[int], float] = _no_grid  # the base grid (for the steps of units with periods)
         self._desc = desc
         self._source = {link.target: link.source for link in self.links}
         self._outputs: dict[str, _Transfer] = {}
@@ -567,10 +586,11 @@ class CouplingAlgorithm:
                 self._grid[op.slots] = values[op.slots]
             elif op.kind == "peek":
                 self._peek(op)
-            elif op.kind == "tget":
-                self._get_typed(op.handle)
-            else:
-                self._set_typed(op.handle)
+            elif op.transfer is not None:
+                if op.kind == "tget":
+                    self._get_typed(op.transfer)
+                else:
+                    self._set_typed(op.transfer)
         # history shifts by one step (the arrays stay in place: the native executor holds them)
         now, before, earlier = self._history
         earlier[:] = before
@@ -589,79 +609,98 @@ class CouplingAlgorithm:
         (inputs from the end-of-step values, outputs re-read). A ``set`` op forms each input
         by its rule (``RULES``) from the value arrays; a ``get`` op writes outputs into slots.
         An output the propagation re-reads before anything uses it is not read after its unit's
-        step as well (Kobe: 14 FMI calls per step, not 15). The native executor runs the same list.
+        step as well (one FMI call fewer per such unit and step). The native executor runs the same list.
         """
         return self._program
 
-    def _build_program(self) -> list[ProgramOp]:
-        periods = self.periods
+    def _timing(self, name: str, at_end: bool = False) -> _Timing:
+        """A unit with its own step of m base steps: its step's ops run at k % m == 0, its propagation at the
+        end of its steps (k % m == m - 1)."""
+        m = self.periods[name]
+        return {"every": m, "phase": m - 1 if at_end else 0}
 
-        def timing(name: str, at_end: bool = False) -> dict[str, int]:
-            """A unit with its own step of m base steps: its step's ops run at k % m == 0, its propagation at the
-            end of its steps (k % m == m - 1)."""
-            m = periods[name]
-            return {"every": m, "phase": m - 1 if at_end else 0}
+    def _set_op(self, plan: _InputPlan) -> ProgramOp:
+        """The ``set`` op of a unit's connected inputs: per value its slot, its rule and its restart drivers."""
+        rules = np.zeros(len(plan.buffer), dtype=np.intp)
+        slots = np.zeros(len(plan.buffer), dtype=np.intp)
+        drivers = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
+        fresh = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
+        for rule in RULES:
+            pos, group_slots = getattr(plan, rule)
+            rules[pos] = RULES.index(rule)
+            slots[pos] = group_slots
+        for r in plan.restarting:
+            rules[r.position], slots[r.position] = RULES.index("extrapolated"), r.slot
+            drivers[r.position], fresh[r.position] = r.drivers, r.fresh
+        return ProgramOp("set", plan.unit, plan.handle, slots, rules, plan, **self._timing(plan.unit.name),
+                         drivers=drivers, fresh_drivers=fresh)
 
-        def set_op(plan: _InputPlan) -> ProgramOp:
-            rules = np.zeros(len(plan.buffer), dtype=np.intp)
-            slots = np.zeros(len(plan.buffer), dtype=np.intp)
-            drivers = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
-            fresh = [np.zeros(0, dtype=np.intp)] * len(plan.buffer)
-            for rule in RULES:
-                pos, group_slots = getattr(plan, rule)
-                rules[pos] = RULES.index(rule)
-                slots[pos] = group_slots
-            for r in plan.restarting:
-                rules[r.position], slots[r.position] = RULES.index("extrapolated"), r.slot
-                drivers[r.position], fresh[r.position] = r.drivers, r.fresh
-            return ProgramOp("set", plan.unit, plan.handle, slots, rules, plan, **timing(plan.unit.name),
-                             drivers=drivers, fresh_drivers=fresh)
+    def _get_ops(self, name: str) -> list[ProgramOp]:
+        """Read a unit's slotted outputs after its step: the Reals, then each other type."""
+        tr = self._outputs.get(name)
+        real = [] if tr is None else [ProgramOp("get", tr.unit, tr.handle, tr.slots, **self._timing(name))]
+        return real + [ProgramOp("tget", t.unit, transfer=t, **self._timing(name))
+                       for t in self._typed_outputs.get(name, ())]
 
-        def get_op(name: str) -> list[ProgramOp]:
-            tr = self._outputs.get(name)
-            real = [] if tr is None else [ProgramOp("get", tr.unit, tr.handle, tr.slots, **timing(name))]
-            return real + [ProgramOp("tget", t.unit, t, **timing(name)) for t in self._typed_outputs.get(name, ())]
+    def _set_ops(self, name: str) -> list[ProgramOp]:
+        """Set a unit's connected inputs before its step: its peeks, its Reals, then each other type."""
+        plan = self._input_plans.get(name)
+        peeks = [r.peek for r in plan.restarting if r.peek is not None] if plan is not None else []
+        real = [*peeks, self._set_op(plan)] if plan is not None else []
+        return real + [ProgramOp("tset", t.unit, transfer=t, **self._timing(name))
+                       for t in self._typed_inputs.get(name, ())]
 
-        def set_ops(name: str) -> list[ProgramOp]:
-            peeks = [r.peek for r in plans[name].restarting if r.peek is not None] if name in plans else []
-            real = [*peeks, set_op(plans[name])] if name in plans else []
-            return real + [ProgramOp("tset", t.unit, t, **timing(name)) for t in self._typed_inputs.get(name, ())]
-
-        plans = self._input_plans
+    def _step_ops(self) -> list[ProgramOp]:
+        """Inputs, steps and output reads in the scheme's order (Jacobi: all sets, all steps, all gets)."""
         ops: list[ProgramOp] = []
         if self.scheme == "jacobi":
             for unit in self.order:
-                ops += set_ops(unit.name)
-            ops += [ProgramOp("step", u, **timing(u.name)) for u in self.order]
+                ops += self._set_ops(unit.name)
+            ops += [ProgramOp("step", u, **self._timing(u.name)) for u in self.order]
             for unit in self.order:
-                ops += get_op(unit.name)
+                ops += self._get_ops(unit.name)
         else:
             for unit in self.order:
-                ops += set_ops(unit.name)
-                ops.append(ProgramOp("step", unit, **timing(unit.name)))
-                ops += get_op(unit.name)
-        # Units with their own step: their outputs as they are at the end of their steps, for the "grid" rule.
-        # Outputs the propagation re-reads are latched after that read, the others before the propagation.
+                ops += self._set_ops(unit.name)
+                ops.append(ProgramOp("step", unit, **self._timing(unit.name)))
+                ops += self._get_ops(unit.name)
+        return ops
+
+    def _latch_ops(self) -> list[ProgramOp]:
+        """Units with their own step: their outputs as they are at the end of their steps, for the "grid" rule.
+
+        Outputs the propagation re-reads are latched after that read (:meth:`_propagation_ops`), the
+        others here, before the propagation.
+        """
         propagated = {o for p in self._propagation if p.real_get is not None for o in p.real_get.slots.tolist()}
-        for name, m in periods.items():
+        ops = []
+        for name, m in self.periods.items():
             tr = self._outputs.get(name)
             if m > 1 and tr is not None:
                 kept = [k for k in tr.slots.tolist() if k not in propagated]
                 if kept:
                     ops.append(ProgramOp("latch", tr.unit, None, np.asarray(kept, dtype=np.intp),
-                                         **timing(name, at_end=True)))
+                                         **self._timing(name, at_end=True)))
+        return ops
+
+    def _propagation_ops(self) -> list[ProgramOp]:
+        """Feedthrough propagation: per level and unit, its inputs from the end-of-step values, its outputs re-read."""
+        ops: list[ProgramOp] = []
         for p in self._propagation:
             name = (p.real_set or p.real_get or (p.typed_set or p.typed_get)[0]).unit.name
-            when = timing(name, at_end=True)
+            when = self._timing(name, at_end=True)
             if p.real_set is not None:
                 ops.append(ProgramOp("set", p.real_set.unit, p.real_set.handle, p.real_set.slots, p.set_rules, **when))
-            ops += [ProgramOp("tset", t.unit, t, **when) for t in p.typed_set]
+            ops += [ProgramOp("tset", t.unit, transfer=t, **when) for t in p.typed_set]
             if p.real_get is not None:
                 ops.append(ProgramOp("get", p.real_get.unit, p.real_get.handle, p.real_get.slots, **when))
-                if periods[name] > 1:
+                if self.periods[name] > 1:
                     ops.append(ProgramOp("latch", p.real_get.unit, None, p.real_get.slots, **when))
-            ops += [ProgramOp("tget", t.unit, t, **when) for t in p.typed_get]
-        return self._without_dead_reads(ops)
+            ops += [ProgramOp("tget", t.unit, transfer=t, **when) for t in p.typed_get]
+        return ops
+
+    def _build_program(self) -> list[ProgramOp]:
+        return self._without_dead_reads(self._step_ops() + self._latch_ops() + self._propagation_ops())
 
     def _without_dead_reads(self, ops: list[ProgramOp]) -> list[ProgramOp]:
         """Drop from each ``get`` the outputs a later ``get`` of the step overwrites before anything reads them.
@@ -689,7 +728,7 @@ class CouplingAlgorithm:
                     slots = op.slots[live].tolist()
                     narrowed = self._transfer(op.unit, [port_of[k] for k in slots], slots)
                     op = ProgramOp("get", op.unit, narrowed.handle, narrowed.slots, every=op.every, phase=op.phase)
-            elif op.kind == "set":  # tset/tget use the typed slots: no float slot is read or dropped
+            elif op.kind == "set" and op.rules is not None:  # every set has rules; tset/tget use the typed slots
                 for s, rule in zip(op.slots.tolist(), op.rules.tolist(), strict=True):
                     if rule in reads_values:
                         overwritten.pop(s, None)

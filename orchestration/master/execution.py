@@ -77,26 +77,37 @@ def time_grid(start: float, stop: float, step: float) -> tuple[int, Callable[[in
     return n, t
 
 
+@dataclass(frozen=True)
+class RunControls:
+    """How a caller follows and steers a run: ``progress(k)`` after every ``progress_every`` steps (and at the end),
+    ``stop_request`` checked before each step, ``after_initialization()`` once the units are initialized (it
+    may raise SimulationError)."""
+
+    progress: Callable[[int], None] | None = None
+    progress_every: int = 1000
+    stop_request: StopRequest | None = None
+    after_initialization: Callable[[], None] | None = None
+
+
 def execute(
     algorithm: CouplingAlgorithm,
     start: float,
     stop: float,
     step: float,
     observers: Sequence[Observer] = (),
-    progress: Callable[[int], None] | None = None,
-    progress_every: int = 1000,
-    stop_request: StopRequest | None = None,
     executor: Executor = "auto",
-    after_initialization: Callable[[], None] | None = None,
+    controls: RunControls = RunControls(),
 ) -> ExecutionResult:
     """Run the algorithm from start to stop [s] with communication step ``step`` [s].
 
     ``executor``: ``python`` steps with :meth:`CouplingAlgorithm.step`; ``native`` runs the
     same program in C (:mod:`orchestration.master.native_stepper`); ``auto`` uses native when it
     can drive the units and falls back to python otherwise. Both give identical results.
-    ``after_initialization()`` is called once the units are initialized (it may raise SimulationError).
+    ``controls``: progress, stop request and the after-initialization check (:class:`RunControls`).
     Never leaves a unit allocated, whatever happens.
     """
+    progress, progress_every = controls.progress, controls.progress_every
+    stop_request, after_initialization = controls.stop_request, controls.after_initialization
     n_steps, t_of = time_grid(start, stop, step)
     wall = _time.perf_counter()
     k = 0

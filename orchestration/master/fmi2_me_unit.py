@@ -135,7 +135,7 @@ class MeUnit(FmuUnit):
         self._initialized = True
         self._update_discrete_states()
         self._call("fmi2EnterContinuousTimeMode")
-        self._solver = self._make_solver(self._time)
+        self._solver = self._make_solver(self._start_time)  # initialization happens at the start time
 
     def terminate(self) -> None:
         """Free the solver, then terminate and free the FMU as FmuUnit does; never raises."""

@@ -69,6 +69,10 @@ class FmiUnitBase:
         """Translate a status an FMI function of this unit returned elsewhere (raises above warning)."""
         self._check(function, status)
 
+    def native_functions(self) -> tuple[int, int, int, int] | None:
+        """None: the native executor drives FMI 2.0 co-simulation units only (FmuUnit says where it can)."""
+        return None
+
     # -- logging -------------------------------------------------------------------------------------
     def _receive_log(self, status: int, category: bytes | None, message: bytes | None) -> None:
         labels = self.status_labels

@@ -213,7 +213,7 @@ def structure_problem(path: Path) -> str | None:
     element per FMI 2.0 ``ScalarVariable``, integer ``index`` and ``dependencies`` in
     ``ModelStructure`` that point at a variable, and integer ``BaseUnit`` exponents.
     """
-    from lxml import etree
+    from lxml import etree  # type: ignore[import-untyped]  # lxml ships no type information (lxml-stubs apart)
 
     try:
         with zipfile.ZipFile(path) as z:
@@ -222,10 +222,21 @@ def structure_problem(path: Path) -> str | None:
         root = etree.fromstring(raw, parser)
     except Exception as exc:  # not XML at all: lxml's message names the line
         return f"not well-formed XML: {str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__}"
+    text = _root_problem(root)
+    if text is not None:
+        return text
+    fmi2 = root.get("fmiVersion") == "2.0"
+    variables = [el for el in root.find("ModelVariables") if isinstance(el.tag, str)]
+    return (_variables_problem(variables, fmi2) or _model_structure_problem(root, variables, fmi2)
+            or _base_unit_problem(root))
 
-    def at(el: Any) -> str:
-        return f"line {el.sourceline}"
 
+def _at(el: Any) -> str:
+    return f"line {el.sourceline}"
+
+
+def _root_problem(root: Any) -> str | None:
+    """The root element, its FMI version and its ModelVariables."""
     if root.tag != "fmiModelDescription":
         return f"the root element is <{root.tag}>, not <fmiModelDescription>"
     version = root.get("fmiVersion")
@@ -233,48 +244,65 @@ def structure_problem(path: Path) -> str | None:
         return "<fmiModelDescription> has no fmiVersion attribute"
     if version != "2.0" and not version.startswith("3."):
         return f"FMI {version} FMU (fmiVersion={version!r}); this master runs FMI 2.0 and FMI 3.0 FMUs"
-    variables_el = root.find("ModelVariables")
-    if variables_el is None:
+    if root.find("ModelVariables") is None:
         return "no <ModelVariables> element"
-    fmi2 = version == "2.0"
-    variables = [el for el in variables_el if isinstance(el.tag, str)]
+    return None
+
+
+def _variables_problem(variables: list[Any], fmi2: bool) -> str | None:
+    """Each variable's name, integer valueReference and type element."""
     for k, el in enumerate(variables, 1):
         kind = "ScalarVariable" if fmi2 else el.tag
         if el.get("name") is None:
-            return f"<{kind}> number {k} ({at(el)}) has no name attribute"
+            return f"<{kind}> number {k} ({_at(el)}) has no name attribute"
         if not _is_int(el.get("valueReference")):
-            return (f"<{kind} name={el.get('name')!r}> ({at(el)}): valueReference "
+            return (f"<{kind} name={el.get('name')!r}> ({_at(el)}): valueReference "
                     f"{el.get('valueReference')!r} is not an integer")
         if fmi2:
             types = [c for c in el if isinstance(c.tag, str) and c.tag in _FMI2_TYPES]
             if len(types) != 1:
-                return (f"<ScalarVariable name={el.get('name')!r}> ({at(el)}) has {len(types)} type elements "
+                return (f"<ScalarVariable name={el.get('name')!r}> ({_at(el)}) has {len(types)} type elements "
                         f"(exactly one of {', '.join(_FMI2_TYPES)} is needed)")
         elif el.tag not in _FMI3_TYPES:
-            return f"<{el.tag}> ({at(el)}) is not an FMI 3.0 variable element"
+            return f"<{el.tag}> ({_at(el)}) is not an FMI 3.0 variable element"
+    return None
+
+
+_STRUCTURE_ELEMENTS = ("Unknown", "Output", "ContinuousStateDerivative", "ClockedState", "InitialUnknown",
+                       "EventIndicator")
+
+
+def _model_structure_problem(root: Any, variables: list[Any], fmi2: bool) -> str | None:
+    """ModelStructure's references (FMI 2.0 index, FMI 3.0 valueReference) and dependencies point at variables."""
     n = len(variables)
     by_vr = {el.get("valueReference") for el in variables}
+    key = "index" if fmi2 else "valueReference"
+
+    def names_no_variable(ref: str) -> bool:
+        return (not _is_int(ref) or not 1 <= int(ref) <= n) if fmi2 else ref not in by_vr
+
     structure = root.find("ModelStructure")
     for el in structure.iter() if structure is not None else ():
         if not isinstance(el.tag, str) or el.tag == "ModelStructure" or (el.getparent() is structure and fmi2):
             continue
-        key = "index" if fmi2 else "valueReference"
-        if el.tag in ("Unknown", "Output", "ContinuousStateDerivative", "ClockedState", "InitialUnknown",
-                      "EventIndicator"):
-            ref = el.get(key)
-            if not _is_int(ref):
-                return f"<{el.tag}> in <ModelStructure> ({at(el)}): {key} {ref!r} is not an integer"
-            if fmi2 and not 1 <= int(ref) <= n:  # type: ignore[arg-type]
-                return f"<{el.tag} index=\"{ref}\"> ({at(el)}) points at no variable (there are {n})"
-            if not fmi2 and ref not in by_vr:
-                return f"<{el.tag} valueReference=\"{ref}\"> ({at(el)}) points at no variable"
-            deps = (el.get("dependencies") or "").split()
-            bad = [d for d in deps if not _is_int(d) or (fmi2 and not 1 <= int(d) <= n)
-                   or (not fmi2 and d not in by_vr)]
-            if bad:
-                return f"<{el.tag}> ({at(el)}): dependencies {bad[0]!r} is not the {key} of a variable"
+        if el.tag not in _STRUCTURE_ELEMENTS:
+            continue
+        ref = el.get(key)
+        if not _is_int(ref):
+            return f"<{el.tag}> in <ModelStructure> ({_at(el)}): {key} {ref!r} is not an integer"
+        if names_no_variable(ref):
+            there = f" (there are {n})" if fmi2 else ""
+            return f"<{el.tag} {key}=\"{ref}\"> ({_at(el)}) points at no variable{there}"
+        bad = [d for d in (el.get("dependencies") or "").split() if not _is_int(d) or names_no_variable(d)]
+        if bad:
+            return f"<{el.tag}> ({_at(el)}): dependencies {bad[0]!r} is not the {key} of a variable"
+    return None
+
+
+def _base_unit_problem(root: Any) -> str | None:
+    """Integer BaseUnit exponents."""
     for el in root.iter("BaseUnit"):
         for name, value in el.attrib.items():
             if name not in ("factor", "offset") and not _is_int(value):
-                return f"<BaseUnit {name}={value!r}> ({at(el)}): the exponent must be an integer"
+                return f"<BaseUnit {name}={value!r}> ({_at(el)}): the exponent must be an integer"
     return None

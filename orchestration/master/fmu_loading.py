@@ -11,14 +11,13 @@ gets a folder of its own, so no two instances share a library's global state.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import tempfile
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from mre_common.hashing import versioned_sha256
 from mre_common.private_cache import (
     fallback_folder,
     manifest_problem,
@@ -43,13 +42,7 @@ def share_extractions(root: Path | str | None) -> None:
     _SHARED_ROOT = None if root is None else Path(root)
 
 
-@lru_cache(maxsize=256)
-def _archive_sha256(path: str, size: int, mtime_ns: int) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+_archive_sha256 = versioned_sha256  # (path, size, mtime_ns) -> the archive's SHA-256, hashed once per version
 
 
 def _extract_entry(root: Path, target: Path, path: Path, source: str) -> None:

@@ -9,7 +9,7 @@ flat program (:meth:`~orchestration.master.algorithm.CouplingAlgorithm.program`)
 executor (:meth:`~orchestration.master.algorithm.CouplingAlgorithm.step`) and this one carry out
 the same calls in the same order with the same floating-point operations, so both give
 identical results (a test checks every scheme bit for bit). What the C loop saves is the
-master's own per-step work: about two thirds of a Kobe run's wall time in Python.
+master's own per-step work (benchmarks/results.md has the measurements).
 
 The kernel (``orchestration/master/native/step_kernel.c``) is compiled with the system C compiler
 (``$CC``, default ``cc``) on first use into a cache folder (``$MRE_COSIM_CACHE``, default
@@ -34,6 +34,7 @@ import numpy as np
 from mre_common import c_compile
 from orchestration.master.algorithm import CouplingAlgorithm, ProgramOp
 from orchestration.master.monitor import Monitor
+from orchestration.master.value_buffer import ValueBuffer
 
 SOURCE = Path(__file__).resolve().parent / "native" / "step_kernel.c"
 CFLAGS = ("-shared", "-fPIC", "-O2", "-ffp-contract=off", "-std=c99", "-Wall", "-Wextra")
@@ -106,8 +107,7 @@ def csv_formatter() -> Callable[[np.ndarray], bytes] | None:
     """The kernel's CSV formatter, or None where the kernel cannot be compiled.
 
     ``format(block)`` turns a C-contiguous float64 block into its CSV lines, every number
-    exactly as Python's ``'%.12g' % x`` writes it (a test compares the two), about five
-    times faster than Python's own formatting.
+    exactly as Python's ``'%.12g' % x`` writes it (a test compares the two).
     """
     try:
         library = kernel_library()
@@ -125,10 +125,49 @@ def csv_formatter() -> Callable[[np.ndarray], bytes] | None:
     return format_rows
 
 
+def _value_buffer(handle: object) -> ValueBuffer:
+    """A prepared handle as the kernel reads it (an FMU unit's ValueBuffer)."""
+    if not isinstance(handle, ValueBuffer):
+        raise NativeUnavailable(f"a prepared value handle the kernel cannot read ({type(handle).__name__})")
+    return handle
+
+
 def _address(array: Any) -> int:
     if isinstance(array, np.ndarray):
         return array.ctypes.data
     return ctypes.addressof(array)
+
+
+def _native_functions(algorithm: CouplingAlgorithm) -> list[tuple[int, int, int, int]]:
+    """Each unit's FMI function addresses, in unit order; NativeUnavailable where the kernel cannot run the system."""
+    if any(op.kind not in _KINDS for op in algorithm.program()):
+        desc = algorithm.descriptions
+        ports = [f"{u}.{v} ({desc[u].variables[v].fmi_type})" for u, v in algorithm.typed_ports]
+        shown = ", ".join(ports[:5]) + (f" and {len(ports) - 5} more" if len(ports) > 5 else "")
+        raise NativeUnavailable(f"the system exchanges or records values that are not Real ({shown}); "
+                                "the native kernel moves Real values only")
+    natives = []
+    for unit in algorithm.units.values():
+        # a unit from outside the engine (an in-process Python unit) may not implement the whole Unit protocol
+        functions = getattr(unit, "native_functions", lambda: None)()
+        if functions is None:
+            raise NativeUnavailable("a unit is not an FMI 2.0 co-simulation FMU")
+        natives.append(functions)
+    return natives
+
+
+def _recorder_and_monitor(algorithm: CouplingAlgorithm, observers: Sequence[Any]) -> tuple[Any, Monitor | None]:
+    """The one Recorder and the one Monitor among the observers (either may be absent); NativeUnavailable else."""
+    # The Recorder is known by its rows_to_fill() (recorder.py imports this module for its CSV writer).
+    recorders = [o for o in observers if callable(getattr(o, "rows_to_fill", None))]
+    monitors = [o for o in observers if isinstance(o, Monitor)]
+    if len(recorders) + len(monitors) != len(observers) or len(recorders) > 1 or len(monitors) > 1:
+        raise NativeUnavailable("observers other than one Recorder and one Monitor")
+    arrays = [algorithm.values, *algorithm.history, algorithm.grid, algorithm.peeked,
+              *(a for r in recorders for a in r.rows_to_fill()[1:])]
+    if not all(a.dtype == np.float64 and a.flags.c_contiguous for a in arrays):
+        raise NativeUnavailable("value or recording arrays that are not contiguous float64")
+    return (recorders[0] if recorders else None), (monitors[0] if monitors else None)
 
 
 class NativeStepper:
@@ -136,39 +175,32 @@ class NativeStepper:
 
     def __init__(self, algorithm: CouplingAlgorithm, observers: Sequence[Any], start: float, stop: float,
                  step: float, n_steps: int) -> None:
-        units = list(algorithm.units.values())
-        natives = [getattr(u, "native_functions", lambda: None)() for u in units]
-        if any(op.kind not in _KINDS for op in algorithm.program()):
-            desc = algorithm.descriptions
-            ports = [f"{u}.{v} ({desc[u].variables[v].fmi_type})" for u, v in algorithm.typed_ports]
-            shown = ", ".join(ports[:5]) + (f" and {len(ports) - 5} more" if len(ports) > 5 else "")
-            raise NativeUnavailable(f"the system exchanges or records values that are not Real ({shown}); "
-                                    "the native kernel moves Real values only")
-        if any(n is None for n in natives):
-            raise NativeUnavailable("a unit is not an FMI 2.0 co-simulation FMU")
-        # The Recorder is known by its rows_to_fill() (recorder.py imports this module for its CSV writer).
-        recorders = [o for o in observers if callable(getattr(o, "rows_to_fill", None))]
-        monitors = [o for o in observers if isinstance(o, Monitor)]
-        if len(recorders) + len(monitors) != len(observers) or len(recorders) > 1 or len(monitors) > 1:
-            raise NativeUnavailable("observers other than one Recorder and one Monitor")
-        arrays = [algorithm.values, *algorithm.history, algorithm.grid, algorithm.peeked,
-                  *(a for r in recorders for a in r.rows_to_fill()[1:])]
-        if not all(a.dtype == np.float64 and a.flags.c_contiguous for a in arrays):
-            raise NativeUnavailable("value or recording arrays that are not contiguous float64")
+        natives = _native_functions(algorithm)
+        recorder, monitor = _recorder_and_monitor(algorithm, observers)
         self._library = kernel_library()
         self._algorithm = algorithm
-        self._units = units
+        self._units = list(algorithm.units.values())
         self._observers = list(observers)
-        self._recorder = recorders[0] if recorders else None
-        index = {u.name: k for k, u in enumerate(units)}
+        self._recorder = recorder
         self._keep: list[Any] = []  # every array the kernel points into stays alive with it
-
-        def array(values: Any, dtype: Any) -> int:
-            a = np.ascontiguousarray(values, dtype=dtype)
-            self._keep.append(a)
-            return a.ctypes.data
-
         self._program: list[ProgramOp] = algorithm.program()
+        self._ops = self._kernel_ops()
+        self._unit_time = np.array([u.time for u in self._units], dtype=np.float64)
+        self._kernel = self._kernel_of(natives, monitor)
+        k = self._kernel
+        k.start, k.stop, k.step, k.n_steps = start, stop, step, n_steps
+        self.done = 0  # steps finished after the last run()
+
+    def _array(self, values: Any, dtype: Any) -> int:
+        """The address of ``values`` as a contiguous array of ``dtype``, kept alive with the kernel."""
+        a = np.ascontiguousarray(values, dtype=dtype)
+        self._keep.append(a)
+        return a.ctypes.data
+
+    def _kernel_ops(self) -> Any:
+        """The program as the kernel's op structs (value references, buffers and slots by address)."""
+        array = self._array
+        index = {u.name: k for k, u in enumerate(self._units)}
         ops = (_Op * len(self._program))()
         for op, p in zip(ops, self._program, strict=True):
             op.kind, op.unit = _KINDS[p.kind], index[p.unit.name]
@@ -176,8 +208,9 @@ class NativeStepper:
             if p.kind == "latch":
                 op.n, op.slots = len(p.slots), array(p.slots, np.int64)
             elif p.kind != "step":
-                op.n = p.handle.n
-                op.vrs, op.buf = _address(p.handle.vrs), _address(p.handle.buf)
+                handle = _value_buffer(p.handle)
+                op.n = handle.n
+                op.vrs, op.buf = _address(handle.vrs), _address(handle.buf)
                 op.slots = array(p.slots, np.int64)
                 op.rules = array(p.rules, np.int64) if p.rules is not None else None
                 if p.drivers is not None and any(len(d) for d in p.drivers):
@@ -187,18 +220,23 @@ class NativeStepper:
                     op.ffirst = array(np.cumsum([0] + [len(d) for d in p.fresh_drivers]), np.int64)
                     op.fslots = array(np.concatenate(p.fresh_drivers), np.int64)
                 if p.kind == "peek":
-                    op.n2, op.out = p.out_handle.n, p.out_slot
-                    op.vrs2, op.buf2 = _address(p.out_handle.vrs), _address(p.out_handle.buf)
-        self._ops = ops
-        self._unit_time = np.array([u.time for u in units], dtype=float)
+                    out = _value_buffer(p.out_handle)
+                    op.n2, op.out = out.n, p.out_slot
+                    op.vrs2, op.buf2 = _address(out.vrs), _address(out.buf)
+        return ops
+
+    def _kernel_of(self, natives: list[tuple[int, int, int, int]], monitor: Monitor | None) -> _Kernel:
+        """The kernel's state: the units' functions, the ops, the algorithm's value arrays, the recorder's rows
+        and the monitor's limits (the time grid is set by the caller)."""
+        array, algorithm = self._array, self._algorithm
         k = _Kernel()
-        k.n_units = len(units)
+        k.n_units = len(self._units)
         k.components = array([n[0] for n in natives], np.uintp)
         k.set_real = array([n[1] for n in natives], np.uintp)
         k.get_real = array([n[2] for n in natives], np.uintp)
         k.do_step = array([n[3] for n in natives], np.uintp)
         k.unit_time = self._unit_time.ctypes.data
-        k.n_ops, k.ops = len(ops), ctypes.addressof(ops)
+        k.n_ops, k.ops = len(self._ops), ctypes.addressof(self._ops)
         values = algorithm.values
         now, before, earlier = algorithm.history
         k.n_values = len(values)
@@ -207,20 +245,18 @@ class NativeStepper:
         k.peeked = algorithm.peeked.ctypes.data
         k.known = algorithm.known
         k.extrapolation = array(algorithm.extrapolation, float)
-        k.start, k.stop, k.step, k.n_steps = start, stop, step, n_steps
         if self._recorder is not None:
             ports, time, data = self._recorder.rows_to_fill()
             k.n_record = len(ports)
             k.record_slots = array([algorithm.slot[p] for p in ports], np.int64)
             k.record_time, k.record_data = time.ctypes.data, data.ctypes.data
-        if monitors:
-            limits = monitors[0].limits
+        if monitor is not None:
+            limits = monitor.limits
             k.check_finite = 1
             k.n_limits = len(limits)
             k.limit_slots = array([algorithm.slot[p] for p in limits], np.int64)
             k.limits = array(list(limits.values()), float)
-        self._kernel = k
-        self.done = 0  # steps finished after the last run()
+        return k
 
     def run(self, first: int, last: int, t_of: Any) -> None:
         """Steps ``first`` .. ``last - 1``, then ``done`` = steps finished; raises as the Python path would."""

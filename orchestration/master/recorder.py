@@ -10,7 +10,6 @@ A run that records only Reals writes exactly the bytes it always did; a long one
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
@@ -22,6 +21,7 @@ import numpy as np
 from mre_common.atomic_files import atomic_write
 from mre_common.env_settings import env_megabytes, env_switch
 from orchestration.master.algorithm import CouplingAlgorithm
+from orchestration.master.child_process import Child, ChildStalled, exit_text, fork_safe
 from orchestration.master.graph import Port
 from orchestration.master.scenario import CSV_PROCESS_ENV
 from orchestration.master.unit import Variable
@@ -55,6 +55,8 @@ class RowStorage:
 
     def __init__(self, rows: int, cols: int, spill_dir: Path | None = None, shared: bool = False) -> None:
         self.spilled = spill_dir is not None and rows * (cols + 1) * 8 > spill_threshold()
+        self.time: np.ndarray
+        self.data: np.ndarray
         if self.spilled:
             self.time = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+", shape=(rows,))
             self.data = np.memmap(tempfile.TemporaryFile(dir=spill_dir), dtype=np.float64, mode="w+",
@@ -223,72 +225,52 @@ class _RealRows:
 class CsvProcess:
     """``timeseries.csv`` of Real columns written by a forked process while the units step.
 
-    :meth:`start` forks before the run (before any thread and before the FMUs load) a child
-    that shares the run's row storage (:class:`RowStorage` made ``shared``). :meth:`rows`
-    tells it how many rows are final (the executor's progress ticks): it formats them on
-    the machine's other CPU while this process steps. :meth:`finish` gives the final count
-    and :meth:`wait` returns once the file is in place (written atomically, the same bytes
-    as :func:`write_timeseries`), or raises :class:`OSError` naming what failed. The child
-    ignores SIGINT and SIGTERM (the run decides when to stop) and, without a final count
-    (:meth:`cancel`, or this process's death), removes its temporary file and exits.
+    :meth:`start` forks (:class:`~orchestration.master.child_process.Child`) before the run (before any thread and
+    before the FMUs load) a child that shares the run's row storage (:class:`RowStorage` made ``shared``).
+    :meth:`rows` tells it how many rows are final (the executor's progress ticks): it formats them on the
+    machine's other CPU while this process steps. :meth:`finish` gives the final count and :meth:`wait` returns
+    once the file is in place (written atomically, the same bytes as :func:`write_timeseries`), or raises
+    :class:`OSError` naming what failed. The child ignores SIGINT and SIGTERM (the run decides when to stop) and,
+    without a final count (:meth:`cancel`, or this process's death), removes its temporary file and exits.
     """
 
     MIN_ROWS = 20_000
     """Fewer rows take less than a fork's worth of time to write: they are written in the run's own process."""
 
-    def __init__(self, pid: int, go: int, result: int, path: Path | None = None) -> None:
-        self._pid, self._go, self._result, self._path = pid, go, result, path
+    def __init__(self, child: Child, path: Path | None = None) -> None:
+        self._child, self._path = child, path
+
+    @property
+    def _pid(self) -> int:
+        """The child's process id (0 once reaped)."""
+        return self._child.pid
 
     @staticmethod
     def wanted(rows: int, kinds: Sequence[str]) -> bool:
         """Whether a run of ``rows`` rows with columns of these kinds gains from a CSV process: many rows, Real columns
-        only, another CPU, and a safe fork (Linux, one thread); ``MRE_COSIM_CSV_PROCESS=0`` turns it off (to compare
-        the two side by side: the file is the same)."""
-        import sys
-        import threading
-
+        only, another CPU, and a safe fork (:func:`~orchestration.master.child_process.fork_safe`);
+        ``MRE_COSIM_CSV_PROCESS=0`` turns it off (to compare the two side by side: the file is the same)."""
         return (env_switch(CSV_PROCESS_ENV, True) and rows >= CsvProcess.MIN_ROWS
-                and all(kind == "real" for kind in kinds) and (os.cpu_count() or 1) > 1
-                and sys.platform.startswith("linux") and threading.active_count() == 1)
+                and all(kind == "real" for kind in kinds) and (os.cpu_count() or 1) > 1 and fork_safe())
 
     @classmethod
     def start(cls, path: Path, names: Sequence[str], storage: RowStorage, close: Sequence[int] = ()) -> CsvProcess:
         """Fork the child that writes ``path`` from ``storage``; ``close``: file descriptors of this process the child
         must not hold (other children's pipe ends, so that they see this process close them)."""
-        import sys
-
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()  # nothing buffered before the fork is written twice
-            except (AttributeError, OSError, ValueError):
-                pass
-        go_read, go_write = os.pipe()
-        result_read, result_write = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # the child: never returns into the caller's code
-            code = 1
-            try:
-                for fd in (*close, go_write, result_read):
-                    try:
-                        os.close(fd)
-                    except OSError:
-                        pass
-                code = _csv_child(Path(path), names, storage, go_read, result_write)
-            finally:
-                os._exit(code)
-        os.close(go_read)
-        os.close(result_write)
-        os.set_blocking(go_write, False)  # a stopped child must not block the run (_send)
-        return cls(pid, go_write, result_read, Path(path))
+        path = Path(path)
+        child = Child.fork(lambda go: _csv_child(path, names, storage, go), "the CSV process failed", close)
+        return cls(child, path)
 
     def rows(self, count: int) -> None:
-        """The first ``count`` rows are recorded and will not change."""
-        self._send(f"{count}\n")
+        """The first ``count`` rows are recorded and will not change (a count that does not fit in the pipe is
+        dropped: the next one says more)."""
+        self._child.send(f"{count}\n")
 
     def finish(self, count: int) -> None:
-        """The run recorded ``count`` rows in all: the child writes the rest and puts the file in place."""
-        self._send(f"={count}\n", final=True)
-        self._close_go()
+        """The run recorded ``count`` rows in all: the child writes the rest and puts the file in place (the count
+        is retried while the child runs, for at most :attr:`STALL_S`; a stopped child: :meth:`wait` says so)."""
+        self._child.send(f"={count}\n", retry_s=self.STALL_S)
+        self._child.close_go()
 
     STALL_S = 60.0
     """Longest the child may go without writing a byte once the run has ended [s]: then it is stopped."""
@@ -299,47 +281,17 @@ class CsvProcess:
         """Once the file is in place; :class:`OSError` if the child could not write it, died, was stopped
         (SIGSTOP) or wrote nothing for :attr:`STALL_S` (bounded: it is killed then). Rows a dead child had
         written are kept under :attr:`INCOMPLETE_SUFFIX`, and the error names that file."""
-        import select
-        import time
-
-        self._close_go()
-        chunks = []
-        last_size, quiet_since = -1, time.monotonic()
-        while True:
-            ready, _, _ = select.select([self._result], [], [], 0.5)
-            if ready:
-                chunk = os.read(self._result, 65536)
-                if not chunk:
-                    break
-                chunks.append(chunk)
-                continue
-            if self._stopped():
-                self._abandon("was stopped (SIGSTOP, or a debugger holds it)")
-            size = self._partial_size()
-            if size != last_size:
-                last_size, quiet_since = size, time.monotonic()
-            elif time.monotonic() - quiet_since > self.STALL_S:
-                self._abandon(f"wrote nothing for {self.STALL_S:g} s")
-        status = self._reap()
+        self._child.close_go()
         try:
-            answer = json.loads(b"".join(chunks) or b"null")
-        except ValueError:
-            answer = None
+            answer = self._child.answer(self._partial_size, self.STALL_S)
+        except ChildStalled as stalled:
+            raise OSError(f"the process writing it (pid {stalled.pid}) {stalled.why}{self._keep_partial()}") from None
+        status = self._child.reap()
         if not isinstance(answer, dict):
-            reason = (f"killed by signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status)
-                      else f"exit code {os.WEXITSTATUS(status)}")
-            raise OSError(f"the process writing it ended without an answer ({reason}){self._keep_partial()}")
+            raise OSError(f"the process writing it ended without an answer ({exit_text(status, signal_number=True)})"
+                          f"{self._keep_partial()}")
         if "error" in answer:
             raise OSError(answer["error"])
-
-    def _stopped(self) -> bool:
-        """Whether the child is stopped (state T or t in /proc/<pid>/stat)."""
-        try:
-            with open(f"/proc/{self._pid}/stat", "rb") as f:
-                state = f.read().rpartition(b")")[2].split()[0]
-        except (OSError, IndexError):
-            return False
-        return state in (b"T", b"t")
 
     def _partials(self) -> list[Path]:
         """The child's temporary file(s) (``.timeseries.csv.<random>.tmp``, as :func:`atomic_write` names it)."""
@@ -372,75 +324,24 @@ class CsvProcess:
         rows = max(data[:end].count(b"\n") - 1, 0)
         return f"; the {rows} rows it wrote are kept in {kept.name} (the run is incomplete)"
 
-    def _abandon(self, why: str) -> None:
-        """Kill a child that cannot finish, keep what it wrote, and raise the OSError saying why."""
-        import signal
-
-        pid = self._pid
-        try:
-            os.kill(pid, signal.SIGKILL)
-        except OSError:
-            pass
-        self._reap()
-        raise OSError(f"the process writing it (pid {pid}) {why}{self._keep_partial()}")
-
     def cancel(self) -> None:
         """No file: the child removes its temporary file and exits."""
-        self._close_go()
-        self._reap()
+        self._child.cancel()
 
     def __del__(self) -> None:  # dropped without finish and wait (an exception in the run): the child exits
         try:
             self.cancel()
-        except OSError:
+        except (OSError, AttributeError):
             pass
-
-    def _send(self, text: str, final: bool = False) -> None:
-        """Write to the child without ever blocking the run on it: the pipe is non-blocking, a row count that does
-        not fit is dropped (the next one says more), the final one is retried while the child runs, for at most
-        :attr:`STALL_S` (a stopped child: :meth:`wait` says so)."""
-        import select
-        import time
-
-        deadline = time.monotonic() + self.STALL_S
-        while self._go >= 0:
-            try:
-                os.write(self._go, text.encode())
-                return
-            except BlockingIOError:
-                if not final or self._stopped() or time.monotonic() > deadline:
-                    return
-                select.select([], [self._go], [], 0.5)
-            except OSError:
-                return  # a child that ended early (it could not write the file): wait() says why
-
-    def _close_go(self) -> None:
-        if self._go >= 0:
-            os.close(self._go)
-            self._go = -1
-
-    def _reap(self) -> int:
-        status = 0
-        if self._result >= 0:
-            os.close(self._result)
-            self._result = -1
-        if self._pid > 0:
-            status = os.waitpid(self._pid, 0)[1]
-            self._pid = 0
-        return status
 
 
 class _Cancelled(Exception):
     """The run ended without a final row count: no file."""
 
 
-def _csv_child(path: Path, names: Sequence[str], storage: RowStorage, go: int, result: int) -> int:
-    """The CSV process: rows written as they are announced; answers ``{"ok": true}`` or ``{"error": text}``."""
-    import signal
-    import traceback
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+def _csv_child(path: Path, names: Sequence[str], storage: RowStorage, go: int) -> dict[str, Any] | None:
+    """The CSV process: rows written as they are announced; answers ``{"ok": true}`` (an error is answered by
+    :class:`~orchestration.master.child_process.Child`), nothing when cancelled."""
 
     def write(f: Any) -> None:
         rows = _RealRows(names)
@@ -465,17 +366,9 @@ def _csv_child(path: Path, names: Sequence[str], storage: RowStorage, go: int, r
 
     try:
         atomic_write(path, write, binary=True)
-        answer: dict[str, Any] = {"ok": True}
     except _Cancelled:
-        return 0
-    except OSError as exc:
-        answer = {"error": exc.strerror or str(exc)}
-    except BaseException as exc:  # a bug: reported to the run, which keeps its other results
-        answer = {"error": f"the CSV process failed ({traceback.format_exception_only(exc)[-1].strip()})"}
-    data = json.dumps(answer).encode()
-    while data:
-        data = data[os.write(result, data):]
-    return 0
+        return None
+    return {"ok": True}
 
 
 def _write_typed(path: Path, time: np.ndarray, names: Sequence[str], data: np.ndarray, kinds: Sequence[str],
@@ -527,7 +420,7 @@ def write_parquet(path: Path, time: np.ndarray, names: Sequence[str], data: np.n
     """The rows as a Parquet table (pyarrow): ``time`` [s] first as float64, then one column per variable in SI:
     Reals as float32 (7 significant digits, relative error at most 6e-8: more than the 3-4 digits any table
     prints; timeseries.csv keeps 12), integers as int64, Strings as text. Byte-stream-split and zstd-compressed
-    (a Kobe run at every 10th step: 1.3 MB, 4.1 MB as float64), written atomically. The units are the FMUs'
+    (about a third of the size as float64), written atomically. The units are the FMUs'
     (SI at every boundary, docs/fmu_variables.md); the summary's peaks come from every step in float64."""
     import pyarrow as pa
     import pyarrow.parquet as pq

@@ -1,22 +1,19 @@
-"""Run summary and figures, generic: every recorded variable's peak, plus what the application's hook adds.
+"""A run's report, generic: how a run is named (caption, labels), its figures, and the application's hook.
 
 The engine knows variables only. A scenario's ``report`` section names the run for a reader
 (``caption``, filled from the run's parameter values, and ``labels``);
 the application may add keys of its own to that section and a :class:`ReportHook` that turns
 them into entries of ``summary.json`` and into figures (drawn with :class:`Figures`, which
-titles each with the caption and keeps every peak of a decimated line).
+titles each with the caption and keeps every peak of a decimated line). The summary's entries are
+made in :mod:`orchestration.master.summary`; the figures are drawn by forked processes
+(:class:`PlotProcess`, on :mod:`orchestration.master.child_process`), or in the run's process.
 """
 
 from __future__ import annotations
 
-import json
+import functools
 import logging
-import os
 import re
-import signal
-import sys
-import threading
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,38 +21,20 @@ from typing import Any
 
 import numpy as np
 
+from orchestration.master.child_process import Child, exit_text, fork_safe, read_all, spare_processes
 from orchestration.master.recorder import Recorder
 from orchestration.master.scenario import ReportSpec
+from orchestration.master.summary import non_finite, peak, sample_interval, summarize
 from orchestration.master.yaml_source import DataFile
+
+__all__ = ["PLACEHOLDER", "Figures", "PlotFailed", "PlotProcess", "ReportHook", "RunDescription", "caption",
+           "decimate", "non_finite", "peak", "plot", "prepare_plotting", "report_summary", "sample_interval",
+           "summarize"]
+# non_finite, peak, report_summary, sample_interval, summarize: the summary's part (orchestration.master.summary),
+# importable from here as before
 
 PLACEHOLDER = re.compile(r"\{([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\}")
 _MAX_POINTS = 4000  # per plotted line: a figure is ~1000 px wide; min/max pairs keep every peak
-
-
-def peak(x: np.ndarray) -> float | None:
-    """Largest absolute value, or None for an empty series."""
-    return float(np.max(np.abs(x))) if len(x) else None
-
-
-def summarize(rec: Recorder) -> dict[str, Any]:
-    """The engine's own summary: every recorded numeric variable's peak, minimum and maximum (SI units)."""
-    numeric = [k for k, kind in enumerate(rec.kinds) if kind != "string"]
-    if not rec.count or not numeric:
-        return {"variables": {rec.names[k]: {"max_abs": None, "min": None, "max": None} for k in numeric}}
-    block = rec.data[: rec.count]
-    if len(numeric) != block.shape[1]:
-        block = block[:, numeric]
-    top, low, high = np.max(np.abs(block), axis=0), np.min(block, axis=0), np.max(block, axis=0)  # all columns at once
-    return {"variables": {
-        rec.names[k]: {"max_abs": float(top[j]), "min": float(low[j]), "max": float(high[j])}
-        for j, k in enumerate(numeric)
-    }}
-
-
-def sample_interval(rec: Recorder) -> float:
-    """The recorded time step [s] (0 with fewer than two samples)."""
-    t = rec.times
-    return float(t[1] - t[0]) if len(t) > 1 else 0.0
 
 
 @dataclass(frozen=True)
@@ -198,7 +177,7 @@ class Figures:
         if not fig._mre_cosim_mine:
             return fig
         for k, ax in enumerate(axes):
-            mask = slice(None)
+            mask: slice | np.ndarray = slice(None)
             if window is not None and k == 0:
                 mask = (t >= window[0]) & (t <= window[1])
             for y, label, style in lines:
@@ -239,31 +218,6 @@ class ReportHook:
     plot: Callable[[Any, Recorder, RunDescription, Figures], None] | None = None
 
 
-def plot(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, folder: Path, name: str,
-         run: RunDescription, share: tuple[int, int] = (0, 1)) -> list[Path]:
-    """The application's figures of a run (none without a hook that draws): the PNG files written (with a
-    ``share`` (k, n), those of the k-th of n processes drawing them: :class:`Figures`)."""
-    if hook is None or hook.plot is None:
-        return []
-    figures = Figures(folder, caption(spec, run, name), share)
-    hook.plot(spec, rec, run, figures)
-    return figures.made
-
-
-def non_finite(rec: Recorder) -> list[str]:
-    """One line per recorded numeric variable that took a non-finite value (NaN, +-inf), with when it first did."""
-    numeric = [k for k, kind in enumerate(rec.kinds) if kind != "string"]
-    if not rec.count or not numeric:
-        return []
-    block = rec.data[: rec.count]
-    bad = ~np.isfinite(block[:, numeric] if len(numeric) != block.shape[1] else block)
-    out = []
-    for j in np.flatnonzero(bad.any(axis=0)):
-        row, col = int(np.argmax(bad[:, j])), numeric[j]
-        out.append(f"non-finite value: {rec.names[col]} = {block[row, col]} at t = {rec.times[row]:.6g} s")
-    return out
-
-
 def report_summary(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, run: RunDescription,
                    reserved: set[str] | frozenset[str] = frozenset()) -> dict[str, Any]:
     """Numerical validity, the application's summary entries (without ``reserved`` keys), the ``variables`` table.
@@ -278,6 +232,17 @@ def report_summary(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, run
     validity = {"valid": not reasons, "invalid_reasons": reasons}
     return validity | {k: v for k, v in added.items() if k not in reserved and k not in generic
                        and k not in validity} | generic
+
+
+def plot(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, folder: Path, name: str,
+         run: RunDescription, share: tuple[int, int] = (0, 1)) -> list[Path]:
+    """The application's figures of a run (none without a hook that draws): the PNG files written (with a
+    ``share`` (k, n), those of the k-th of n processes drawing them: :class:`Figures`)."""
+    if hook is None or hook.plot is None:
+        return []
+    figures = Figures(folder, caption(spec, run, name), share)
+    hook.plot(spec, rec, run, figures)
+    return figures.made
 
 
 class PlotFailed(OSError):
@@ -298,7 +263,8 @@ def prepare_plotting() -> None:
 
 
 class PlotProcess:
-    """A run's figures drawn by forked processes, beside the run's other writing.
+    """A run's figures drawn by forked processes (:class:`~orchestration.master.child_process.Child`), beside the
+    run's other writing.
 
     :meth:`start` forks before the run: each child imports matplotlib while the units step,
     then waits. :meth:`draw` tells them how many rows were recorded (the rows themselves are
@@ -309,13 +275,18 @@ class PlotProcess:
     exit when the caller closes its end without a count (:meth:`cancel`, or the caller's death).
     """
 
-    def __init__(self, children: list[tuple[int, int, int]]) -> None:
-        self._children = children  # (pid, go pipe, result pipe) per child
+    def __init__(self, children: list[Child]) -> None:
+        self._procs = children
+
+    @property
+    def _children(self) -> list[tuple[int, int, int]]:
+        """(pid, go pipe, result pipe) per child (0 and -1 once reaped and closed)."""
+        return [(c.pid, c.go, c.result) for c in self._procs]
 
     @staticmethod
     def available() -> bool:
-        """Forking is safe here: Linux and one thread (a fork copies no other thread, nor locks it might hold)."""
-        return sys.platform.startswith("linux") and threading.active_count() == 1
+        """Forking is safe here (:func:`~orchestration.master.child_process.fork_safe`)."""
+        return fork_safe()
 
     @classmethod
     def start(cls, draw: Callable[[int, tuple[int, int]], list[Path]],
@@ -324,65 +295,36 @@ class PlotProcess:
         ``draw(rows, (k, processes))``; None where forking is not available."""
         if not cls.available():
             return None
-        processes = processes or max(1, min(2, os.cpu_count() or 1))
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()  # nothing buffered before the fork is written twice
-            except (AttributeError, OSError, ValueError):
-                pass
-        children = []
-        for k in range(processes):
-            go_read, go_write = os.pipe()
-            result_read, result_write = os.pipe()
-            pid = os.fork()
-            if pid == 0:  # a child: never returns into the caller's code
-                code = 1
-                try:
-                    for _, go, result in children:  # the earlier children's pipes
-                        os.close(go)
-                        os.close(result)
-                    os.close(go_write)
-                    os.close(result_read)
-                    code = _plot_child(lambda rows, k=k: draw(rows, (k, processes)), go_read, result_write)
-                finally:
-                    os._exit(code)
-            os.close(go_read)
-            os.close(result_write)
-            children.append((pid, go_write, result_read))
+        n = processes or spare_processes(2)
+        children: list[Child] = []
+        for k in range(n):
+            earlier = [fd for c in children for fd in (c.go, c.result)]
+            children.append(Child.fork(functools.partial(_plot_child, draw, (k, n)),
+                                       "the figures could not be drawn", earlier))
         return cls(children)
 
     def draw(self, rows: int) -> None:
-        """Draw the figures of the first ``rows`` rows (the children start at once)."""
-        for _, go, _ in self._children:
-            if go >= 0:
-                try:
-                    os.write(go, str(rows).encode())
-                except OSError:
-                    pass  # a child that died: wait() says so
+        """Draw the figures of the first ``rows`` rows (the children start at once; a child that died: :meth:`wait`
+        says so)."""
+        for child in self._procs:
+            child.send(str(rows))
         self._close_go()
 
     def cancel(self) -> None:
         """No figures: the children exit."""
         self._close_go()
-        self._reap()
+        for child in self._procs:
+            child.reap()
 
     def wait(self) -> list[Path]:
         """The PNG files written, once every child is done; :class:`PlotFailed` if any could not draw its figures."""
         self._close_go()
-        answers = []
-        for _, _, result in self._children:
-            chunks = []
-            while chunk := os.read(result, 65536):
-                chunks.append(chunk)
-            try:
-                answers.append(json.loads(b"".join(chunks) or b"null"))
-            except ValueError:
-                answers.append(None)
-        statuses = self._reap()
+        answers = [child.answer() for child in self._procs]
+        statuses = [child.reap() for child in self._procs]
         files, errors = [], []
         for answer, status in zip(answers, statuses, strict=True):
             if not isinstance(answer, dict):
-                errors.append(f"a plot process ended without an answer ({_exit_text(status)})")
+                errors.append(f"a plot process ended without an answer ({exit_text(status)})")
             elif "error" in answer:
                 if answer.get("traceback"):
                     logging.getLogger("mre_cosim.report").debug("a plot process: %s", answer["traceback"])
@@ -396,57 +338,28 @@ class PlotProcess:
     def __del__(self) -> None:  # dropped without draw, cancel or wait (an exception in the run): the children exit
         try:
             self.cancel()
-        except OSError:
+        except (OSError, AttributeError):
             pass
 
     def parent_fds(self) -> list[int]:
         """This process's ends of the children's pipes (a process forked later must close them: a child sees the
         run close its pipe only when no other process holds it open)."""
-        return [fd for _, go, result in self._children for fd in (go, result) if fd >= 0]
+        return [fd for c in self._procs for fd in (c.go, c.result) if fd >= 0]
 
     def _close_go(self) -> None:
-        for _, go, _ in self._children:
-            if go >= 0:
-                os.close(go)
-        self._children = [(pid, -1, result) for pid, _, result in self._children]
-
-    def _reap(self) -> list[int]:
-        statuses = []
-        for pid, _, result in self._children:
-            if result >= 0:
-                os.close(result)
-            statuses.append(os.waitpid(pid, 0)[1] if pid > 0 else 0)
-        self._children = [(0, -1, -1) for _ in self._children]
-        return statuses
+        for child in self._procs:
+            child.close_go()
 
 
-def _exit_text(status: int) -> str:
-    if os.WIFSIGNALED(status):
-        return f"killed by {signal.Signals(os.WTERMSIG(status)).name}"
-    return f"exit code {os.WEXITSTATUS(status)}"
-
-
-def _plot_child(draw: Callable[[int], list[Path]], go: int, result: int) -> int:
-    """The plot process: import, wait for the row count, draw, answer ``{"files": [...]}`` or ``{"error": text}``."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+def _plot_child(draw: Callable[[int, tuple[int, int]], list[Path]], share: tuple[int, int],
+                go: int) -> dict[str, Any] | None:
+    """The plot process: import, wait for the row count, draw; answers ``{"files": [...]}`` (an error is answered
+    by :class:`~orchestration.master.child_process.Child`), nothing when cancelled."""
     try:
         prepare_plotting()
     except Exception:  # drawing reports it
         pass
-    chunks = []
-    while chunk := os.read(go, 64):
-        chunks.append(chunk)
-    if not chunks:
-        return 0  # cancelled
-    try:
-        answer: dict[str, Any] = {"files": [str(p) for p in draw(int(b"".join(chunks)))]}
-    except OSError as exc:
-        answer = {"error": exc.strerror or str(exc)}
-    except BaseException as exc:  # reported to the run, which keeps its other results
-        last = traceback.format_exception_only(exc)[-1].strip()
-        answer = {"error": f"the figures could not be drawn ({last})", "traceback": traceback.format_exc()}
-    data = json.dumps(answer).encode()
-    while data:
-        data = data[os.write(result, data):]
-    return 0
+    rows = read_all(go)
+    if not rows:
+        return None  # cancelled
+    return {"files": [str(p) for p in draw(int(rows), share)]}

@@ -18,12 +18,15 @@ import difflib
 import re
 import stat
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
+
+import numpy as np
 
 from mre_common.env_settings import EnvSettingError, env_megabytes, env_switch
+from mre_common.hashing import file_sha256
 from orchestration.master.algorithm import CouplingAlgorithm
 from orchestration.master.binary_check import check_binary
 from orchestration.master.datapath import file_kind, find_data_file
@@ -36,7 +39,6 @@ from orchestration.master.fmu_description import FmuFormatError, read_descriptio
 from orchestration.master.graph import AlgebraicLoopError, Link, Port, propagation_order
 from orchestration.master.recorder import DEFAULT_SPILL_MB, SPILL_ENV
 from orchestration.master.report import PLACEHOLDER, ReportHook
-from orchestration.master.runfolder import sha256
 from orchestration.master.safe_archive import DEFAULT_UNPACKED_MB, UNPACKED_ENV
 from orchestration.master.scenario import (
     CSV_PROCESS_ENV,
@@ -50,9 +52,11 @@ from orchestration.master.scenario import (
 from orchestration.master.unit import (
     EXCHANGED_TYPES,
     INTEGER_RANGES,
+    Unit,
     UnitDescription,
     Variable,
     exchange_kind,
+    start_value,
     value_range,
 )
 from orchestration.master.unit_check import connection_units, warn_once
@@ -166,7 +170,7 @@ def check_environment() -> None:
 
 def _hash(path: Path) -> str | None:
     try:
-        return sha256(path)
+        return file_sha256(path)
     except OSError:
         return None
 
@@ -185,7 +189,37 @@ class UnloadableUnit(FmiUnitBase):
 
     def setup(self, start_time: float, stop_time: float) -> None:
         self._time = start_time
-        raise SimulationError(f"cannot load FMU {self.path}: {self.reason}", unit=self.name, time=start_time)
+        self._fail()
+
+    def _fail(self) -> NoReturn:
+        raise SimulationError(f"cannot load FMU {self.path}: {self.reason}", unit=self.name, time=self._time)
+
+    # the rest of the Unit protocol: never reached (setup fails first), and failing the same way if it were
+    def exit_initialization(self) -> None:
+        self._fail()
+
+    def get_real(self, handle: Any) -> np.ndarray:
+        self._fail()
+
+    def set_real(self, handle: Any, values: np.ndarray) -> None:
+        self._fail()
+
+    def get_values(self, fmi_type: str, refs: Sequence[int]) -> list[Any]:
+        self._fail()
+
+    def set_values(self, fmi_type: str, refs: Sequence[int], values: Sequence[Any]) -> None:
+        self._fail()
+
+    def step(self, t: float, h: float) -> None:
+        self._fail()
+
+
+if TYPE_CHECKING:
+    from orchestration.master.fmi2_me_unit import MeUnit
+
+FmiUnit: TypeAlias = "FmuUnit | MeUnit | Fmu3Unit | UnloadableUnit"
+"""The units a plan creates: FMI 2.0 co-simulation, FMI 2.0 model exchange, FMI 3.0 co-simulation, and a unit
+whose FMU could not be read when the run was set up (it fails at setup)."""
 
 
 @dataclass
@@ -224,12 +258,12 @@ class SystemPlan:
                 changed.append(f"{text} {what}")
         return changed
 
-    def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmuUnit | Fmu3Unit]:
+    def create_units(self, on_log: Callable[[str, LogRecord], None] | None = None) -> list[FmiUnit]:
         """Fresh FMU units in declaration order (nothing is instantiated yet); FMI 3.0 FMUs as Fmu3Unit, units run as
         model exchange (the scenario's ``interface``, or an FMU without co-simulation) as MeUnit."""
         from orchestration.master.fmi2_me_unit import MeUnit, runs_as_model_exchange
 
-        units: list[FmuUnit | Fmu3Unit] = []
+        units: list[FmiUnit] = []
         for name, desc in self.descriptions.items():
             spec, args = self.loaded.scenario.units[name], (name, self.fmu_paths[name], self.parameters[name], on_log)
             try:
@@ -240,10 +274,10 @@ class SystemPlan:
             except (FmuFormatError, OSError, ValueError, zipfile.BadZipFile, KeyError) as exc:
                 # the FMU changed after it was checked: a failed run (at setup), not a crash before it
                 text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-                units.append(UnloadableUnit(name, self.fmu_paths[name], desc, text))  # type: ignore[arg-type]
+                units.append(UnloadableUnit(name, self.fmu_paths[name], desc, text))
         return units
 
-    def create_algorithm(self, units: list[FmuUnit]) -> CouplingAlgorithm:
+    def create_algorithm(self, units: Sequence[Unit]) -> CouplingAlgorithm:
         """The coupling algorithm for these units, as the scenario chose it."""
         sim = self.loaded.scenario.simulation
         return CouplingAlgorithm(units, self.links, self.recorded + list(self.limits), sim.algorithm, sim.order,
@@ -285,218 +319,294 @@ def _prepare(path: Path, hooks: ResolveHooks) -> str | None:
 
 
 def resolve(loaded: LoadedScenario, data_dirs: tuple[Path, ...] = (), hooks: ResolveHooks | None = None) -> SystemPlan:
-    """Check a loaded scenario against its FMUs; raises ScenarioError listing every problem."""
+    """Check a loaded scenario against its FMUs; raises ScenarioError listing every problem.
+
+    The checks run in stages, each adding its problems to the one list: the FMUs, each unit's
+    parameters, the units' own steps, the connections, the report section, the recorded
+    variables and limits, then the system as a whole (order, loops, executor, result size).
+    """
     hooks = hooks or ResolveHooks()
     check_environment()  # a meaningless MRE_COSIM_* value would make every later check misleading
-    sc = loaded.scenario
-    problems: list[Problem] = []
-    hashes: dict[str, str | None] = {}
-    descriptions: dict[str, UnitDescription] = {}
-    fmu_paths: dict[str, Path] = {}
-    parameters: dict[str, dict[str, Any]] = {}
-    data_files: dict[str, Path] = {}
+    r = _Resolution(loaded, data_dirs, hooks)
+    r.read_fmus()
+    r.check_parameters()
+    periods = _unit_periods(loaded, r.descriptions, r.problems)
+    links = r.connections()
+    r.check_links_of_own_steps(links, periods)
+    r.check_unconnected_inputs(links)
+    report = r.report_section()
+    recorded = r.recorded(report)
+    limits = r.limits()
+    r.check_system(links, recorded + list(limits))
+    r.check_result_size(len(recorded))
+    if r.problems:
+        raise ScenarioError(r.problems)
+    if report is None:  # read_report returns None only with problems
+        raise ScenarioError([loaded.problem("the report section could not be read", "report")])
+    provenance = hooks.provenance() if hooks.provenance is not None else {}
+    return SystemPlan(loaded, r.fmu_paths, r.descriptions, r.parameters, links, recorded, limits, r.data_files,
+                      provenance, report, hooks.report, r.hashes, periods)
 
-    for name in sc.units:
-        path = loaded.fmu_path(name)
-        fmu_paths[name] = path
-        looping = path.is_symlink() and not path.exists()
+
+class _Resolution:
+    """The state of one :func:`resolve`: what is found so far, and every problem, in the order found."""
+
+    def __init__(self, loaded: LoadedScenario, data_dirs: tuple[Path, ...], hooks: ResolveHooks) -> None:
+        self.loaded = loaded
+        self.sc = loaded.scenario
+        self.data_dirs = data_dirs
+        self.hooks = hooks
+        self.problems: list[Problem] = []
+        self.hashes: dict[str, str | None] = {}
+        self.descriptions: dict[str, UnitDescription] = {}
+        self.fmu_paths: dict[str, Path] = {}
+        self.parameters: dict[str, dict[str, Any]] = {}
+        self.data_files: dict[str, Path] = {}
+
+    def problem(self, text: str, *key: Any) -> None:
+        self.problems.append(self.loaded.problem(text, *key))
+
+    # -- the FMUs ---------------------------------------------------------------------------------------
+    def read_fmus(self) -> None:
+        """Each unit's FMU found (prepared by the hook), its description read, its binary checked, its hash taken."""
+        for name in self.sc.units:
+            path = self.loaded.fmu_path(name)
+            self.fmu_paths[name] = path
+            text = self._fmu_file_problem(path)
+            if text is not None:
+                self.problem(text, "units", name, "fmu")
+                continue
+            interface = self.sc.units[name].interface
+            try:
+                self.descriptions[name], md = read_description(path, name, interface)
+            except FmuFormatError as exc:
+                self.problem(str(exc), "units", name, "fmu")
+                continue
+            text = check_binary(path, md, interface)
+            if text is not None:
+                self.problem(text, "units", name, "fmu")
+            self.hashes[str(path)] = _hash(path)
+
+    def _fmu_file_problem(self, path: Path) -> str | None:
         if "\x00" in str(path):  # no file can have this name (and the OS calls would raise ValueError)
-            text: str | None = f"{str(path)!r} holds a NUL character (\\0): no file has such a name"
-        else:
-            text = f"{path}: a symbolic link to nothing (dangling or looping)" if looping else _prepare(path, hooks)
-        if text is not None:
-            problems.append(loaded.problem(text, "units", name, "fmu"))
-            continue
-        try:
-            descriptions[name], md = read_description(path, name, sc.units[name].interface)
-        except FmuFormatError as exc:
-            problems.append(loaded.problem(str(exc), "units", name, "fmu"))
-            continue
-        text = check_binary(path, md, sc.units[name].interface)
-        if text is not None:
-            problems.append(loaded.problem(text, "units", name, "fmu"))
-        hashes[str(path)] = _hash(path)
+            return f"{str(path)!r} holds a NUL character (\\0): no file has such a name"
+        if path.is_symlink() and not path.exists():
+            return f"{path}: a symbolic link to nothing (dangling or looping)"
+        return _prepare(path, self.hooks)
 
-    for name, spec in sc.units.items():
-        parameters[name] = {}
-        unit_problems = len(problems)
-        desc = descriptions.get(name)
-        for pname, value in spec.parameters.items():
-            if isinstance(value, DataFile):
-                try:
-                    found = find_data_file(value.name, data_dirs, loaded.base_dir("units", name, "parameters", pname),
-                                           hooks.default_data_dirs)
-                except OSError as exc:  # not found, not a regular file, not readable
-                    problems.append(loaded.problem(str(exc), "units", name, "parameters", pname))
-                    continue
-                kind = value.kind
-                if kind == "data" and desc is not None and hooks.data_kind is not None:
-                    kind = hooks.data_kind(desc, pname) or kind
-                check = hooks.data_checks.get(kind)
-                text = check(found) if check is not None else None
-                if text is not None:
-                    problems.append(loaded.problem(text, "units", name, "parameters", pname))
-                    continue
-                data_files[f"{name}.{pname}"] = found
-                hashes[str(found)] = _hash(found)
-                value = str(found)
-            elif isinstance(value, str) and value and desc is not None and hooks.data_kind is not None:
-                text = _plain_path_problem(value, hooks.data_kind(desc, pname), hooks)
-                if text is not None:
-                    problems.append(loaded.problem(text, "units", name, "parameters", pname))
-                    continue
-            if desc is None:
-                continue
-            var = desc.variables.get(pname)
-            if var is None:
-                problems.append(loaded.problem(f"{desc.model_identifier} has no variable {pname!r}",
-                                               "units", name, "parameters", pname))
-                continue
-            if var.causality not in ("parameter", "input") or var.variability == "constant":
-                problems.append(loaded.problem(
-                    f"{pname!r} is a {var.variability} {var.causality}, not a settable parameter",
-                    "units", name, "parameters", pname))
-                continue
-            text = _not_exchanged(var)
-            if text is None:
-                value, text = typed_parameter(var, value, desc.fmi_version)
+    # -- parameters -------------------------------------------------------------------------------------
+    def check_parameters(self) -> None:
+        """Every unit's parameters: data files found and checked, values checked against their variables; then
+        the application's domain checks of a unit whose parameters are otherwise fine."""
+        for name, spec in self.sc.units.items():
+            self.parameters[name] = {}
+            unit_problems = len(self.problems)
+            desc = self.descriptions.get(name)
+            for pname, value in spec.parameters.items():
+                self._parameter(name, desc, pname, value)
+            if desc is not None and self.hooks.parameter_check is not None and len(self.problems) == unit_problems:
+                self.problems += _domain_problems(self.loaded, name, desc, self.fmu_paths[name],
+                                                  self.parameters[name], self.hooks)
+
+    def _parameter(self, name: str, desc: UnitDescription | None, pname: str, value: Any) -> None:
+        """One parameter: its value checked and put into ``parameters``, or its problem recorded."""
+        key = ("units", name, "parameters", pname)
+        hooks = self.hooks
+        if isinstance(value, DataFile):
+            value = self._data_file(name, desc, pname, value)
+            if value is None:
+                return
+        elif isinstance(value, str) and value and desc is not None and hooks.data_kind is not None:
+            text = _plain_path_problem(value, hooks.data_kind(desc, pname), hooks)
             if text is not None:
-                problems.append(loaded.problem(text, "units", name, "parameters", pname))
-                continue
+                self.problem(text, *key)
+                return
+        if desc is None:
+            return
+        var = desc.variables.get(pname)
+        if var is None:
+            self.problem(f"{desc.model_identifier} has no variable {pname!r}", *key)
+            return
+        if var.causality not in ("parameter", "input") or var.variability == "constant":
+            self.problem(f"{pname!r} is a {var.variability} {var.causality}, not a settable parameter", *key)
+            return
+        text = _not_exchanged(var)
+        if text is None:
+            value, text = typed_parameter(var, value, desc.fmi_version)
+        if text is None:
             text = _choice_problem(var, value) or _bounds_problem(var, value)
-            if text is not None:
-                problems.append(loaded.problem(text, "units", name, "parameters", pname))
-                continue
-            parameters[name][pname] = value
-        if desc is not None and hooks.parameter_check is not None and len(problems) == unit_problems:
-            problems += _domain_problems(loaded, name, desc, fmu_paths[name], parameters[name], hooks)
+        if text is not None:
+            self.problem(text, *key)
+            return
+        self.parameters[name][pname] = value
 
-    periods = _unit_periods(loaded, descriptions, problems)
+    def _data_file(self, name: str, desc: UnitDescription | None, pname: str, value: DataFile) -> str | None:
+        """A ``!kind`` data file found on the data path and checked as its kind: its path (hashed), or None."""
+        key = ("units", name, "parameters", pname)
+        hooks = self.hooks
+        try:
+            found = find_data_file(value.name, self.data_dirs, self.loaded.base_dir(*key), hooks.default_data_dirs)
+        except OSError as exc:  # not found, not a regular file, not readable
+            self.problem(str(exc), *key)
+            return None
+        kind = value.kind
+        if kind == "data" and desc is not None and hooks.data_kind is not None:
+            kind = hooks.data_kind(desc, pname) or kind
+        check = hooks.data_checks.get(kind)
+        text = check(found) if check is not None else None
+        if text is not None:
+            self.problem(text, *key)
+            return None
+        self.data_files[f"{name}.{pname}"] = found
+        self.hashes[str(found)] = _hash(found)
+        return str(found)
 
-    def port(ref: VariableRef, causality: str, *key: Any, also: tuple[str, ...] = ()) -> Port | None:
-        desc = descriptions.get(ref.unit)
-        if ref.unit not in sc.units:
-            problems.append(loaded.problem(f"no unit named {ref.unit!r} (units: {', '.join(sc.units)})", *key))
+    # -- ports and connections --------------------------------------------------------------------------
+    def port(self, ref: VariableRef, causality: str, *key: Any, also: tuple[str, ...] = ()) -> Port | None:
+        """The port a reference names, if it is a variable of that causality the master exchanges; else None."""
+        desc = self.descriptions.get(ref.unit)
+        if ref.unit not in self.sc.units:
+            self.problem(f"no unit named {ref.unit!r} (units: {', '.join(self.sc.units)})", *key)
             return None
         if desc is None:
             return None  # the unit's own problem is reported already
         var = desc.variables.get(ref.name)
         if var is None:
-            problems.append(loaded.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}", *key))
+            self.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}", *key)
             return None
         if var.causality != causality and var.causality not in also:
             expected = " or ".join((causality, *also))
-            problems.append(loaded.problem(f"{ref} is {var.causality}, expected {expected}", *key))
+            self.problem(f"{ref} is {var.causality}, expected {expected}", *key)
             return None
         text = _not_exchanged(var)
         if text is not None:
-            problems.append(loaded.problem(f"{ref}: {text}", *key))
+            self.problem(f"{ref}: {text}", *key)
             return None
         return (ref.unit, ref.name)
 
-    links: list[Link] = []
-    driven: dict[Port, int] = {}
-    for k, conn in enumerate(sc.connections):
-        src = port(conn.source, "output", "connections", k)
-        dst = port(conn.target, "input", "connections", k)
-        if src is None or dst is None:
-            continue
-        vs = descriptions[src[0]].variables[src[1]]
-        vd = descriptions[dst[0]].variables[dst[1]]
+    def connections(self) -> list[Link]:
+        """The scenario's connections as links: both ends exist and match in type, items and unit, each input
+        driven once."""
+        links: list[Link] = []
+        driven: dict[Port, int] = {}
+        for k, conn in enumerate(self.sc.connections):
+            src = self.port(conn.source, "output", "connections", k)
+            dst = self.port(conn.target, "input", "connections", k)
+            if src is None or dst is None:
+                continue
+            text = self._connection_problem(conn, src, dst)
+            if text is None and dst in driven:
+                text = f"{conn.target} is already driven by connections[{driven[dst]}]"
+            if text is not None:
+                self.problem(text, "connections", k)
+                continue
+            driven[dst] = k
+            links.append(Link(src, dst, conn.delayed))
+        return links
+
+    def _connection_problem(self, conn: Any, src: Port, dst: Port) -> str | None:
+        """Why two ports cannot be connected (type, enumeration items, physical unit), or None (unit warnings
+        are warned once)."""
+        vs = self.descriptions[src[0]].variables[src[1]]
+        vd = self.descriptions[dst[0]].variables[dst[1]]
         if exchange_kind(vs.fmi_type) != exchange_kind(vd.fmi_type):
-            problems.append(loaded.problem(
-                f"type mismatch: {conn.source} is {vs.fmi_type}, {conn.target} is {vd.fmi_type} "
-                "(connections join equal types; the master converts none)", "connections", k))
-            continue
+            return (f"type mismatch: {conn.source} is {vs.fmi_type}, {conn.target} is {vd.fmi_type} "
+                    "(connections join equal types; the master converts none)")
         if vs.fmi_type == "Enumeration" and vs.items and vd.items and sorted(vs.items) != sorted(vd.items):
-            problems.append(loaded.problem(
-                f"enumeration mismatch: {conn.source} has items {_items(vs)}, {conn.target} has {_items(vd)}",
-                "connections", k))
-            continue
+            return f"enumeration mismatch: {conn.source} has items {_items(vs)}, {conn.target} has {_items(vd)}"
         unit_problem, unit_warning = connection_units(str(conn.source), str(conn.target), vs.unit, vd.unit)
         if unit_problem:
-            problems.append(loaded.problem(unit_problem, "connections", k))
-            continue
+            return unit_problem
         if unit_warning:
             warn_once(unit_warning)
-        if dst in driven:
-            problems.append(loaded.problem(f"{conn.target} is already driven by connections[{driven[dst]}]",
-                                           "connections", k))
-            continue
-        driven[dst] = k
-        links.append(Link(src, dst, conn.delayed))
+        return None
 
-    for link in links:  # the grid rules of units with their own step are the Real fast path's
-        for end in (link.source, link.target):
-            var = descriptions[end[0]].variables[end[1]]
-            if end[0] in periods and not var.fast_real:
-                problems.append(loaded.problem(
-                    f"{end[0]}.{end[1]} is {var.fmi_type} and connected: a unit with its own step exchanges Real "
-                    f"values only (leave units.{end[0]}.step out)", "units", end[0], "step"))
+    def check_links_of_own_steps(self, links: list[Link], periods: dict[str, int]) -> None:
+        """The grid rules of units with their own step are the Real fast path's: their links carry Reals only."""
+        for link in links:
+            for end in (link.source, link.target):
+                var = self.descriptions[end[0]].variables[end[1]]
+                if end[0] in periods and not var.fast_real:
+                    self.problem(f"{end[0]}.{end[1]} is {var.fmi_type} and connected: a unit with its own step "
+                                 f"exchanges Real values only (leave units.{end[0]}.step out)", "units", end[0], "step")
 
-    for name, desc in descriptions.items():
-        for var in desc.inputs():
-            if (name, var.name) not in driven and var.start is None and var.name not in parameters[name]:
-                problems.append(loaded.problem(f"input {var.name!r} is not connected and has no start value",
-                                               "units", name))
+    def check_unconnected_inputs(self, links: list[Link]) -> None:
+        """Every input is connected, set as a parameter, or has a start value."""
+        driven = {link.target for link in links}
+        for name, desc in self.descriptions.items():
+            for var in desc.inputs():
+                if (name, var.name) not in driven and var.start is None and var.name not in self.parameters[name]:
+                    self.problem(f"input {var.name!r} is not connected and has no start value", "units", name)
 
-    report, report_problems = check_report(loaded, hooks.report.model if hooks.report is not None else ReportSpec)
-    problems += report_problems
-    for where, text in report.templates() if report is not None else ():
-        for m in PLACEHOLDER.finditer(text):
-            if m.group(1) not in sc.units:
-                problems.append(loaded.problem(f"{{{m.group(1)}.{m.group(2)}}}: no unit named {m.group(1)!r} "
-                                               f"(units: {', '.join(sc.units)})", "report", *where))
+    # -- the report section, recorded variables and limits -------------------------------------------------
+    def report_section(self) -> ReportSpec | None:
+        """The report section as the application's model reads it; its placeholders name units."""
+        hooks, sc = self.hooks, self.sc
+        report, report_problems = check_report(self.loaded, hooks.report.model if hooks.report is not None
+                                               else ReportSpec)
+        self.problems += report_problems
+        for where, text in report.templates() if report is not None else ():
+            for m in PLACEHOLDER.finditer(text):
+                if m.group(1) not in sc.units:
+                    self.problem(f"{{{m.group(1)}.{m.group(2)}}}: no unit named {m.group(1)!r} "
+                                 f"(units: {', '.join(sc.units)})", "report", *where)
+        return report
 
-    recorded: list[Port] = []
-    if sc.outputs == "all":  # every output the master can exchange (FMI 3.0 Binary, clocks, arrays are left out)
-        recorded = [(n, v.name) for n, d in descriptions.items() for v in d.outputs() if _not_exchanged(v) is None]
-    else:
-        for k, ref in enumerate(sc.outputs):
-            p = port(ref, "output", "outputs", k, also=("local",))  # a local is recorded only when named
+    def recorded(self, report: ReportSpec | None) -> list[Port]:
+        """The recorded ports: the scenario's outputs, the report's variables, the report's optional variables
+        where the unit has them."""
+        recorded: list[Port] = []
+        if self.sc.outputs == "all":  # every output the master can exchange (no Binary, clocks, arrays)
+            recorded = [(n, v.name) for n, d in self.descriptions.items() for v in d.outputs()
+                        if _not_exchanged(v) is None]
+        else:
+            for k, ref in enumerate(self.sc.outputs):
+                p = self.port(ref, "output", "outputs", k, also=("local",))  # a local is recorded only when named
+                if p is not None and p not in recorded:
+                    recorded.append(p)
+        for key, ref in report.variables() if report is not None else ():
+            p = self.port(ref, "output", "report", *key)
             if p is not None and p not in recorded:
                 recorded.append(p)
-    for key, ref in report.variables() if report is not None else ():
-        p = port(ref, "output", "report", *key)
-        if p is not None and p not in recorded:
-            recorded.append(p)
-    for ref in report.optional_variables() if report is not None else ():  # recorded where the unit has them
-        var = descriptions[ref.unit].variables.get(ref.name) if ref.unit in descriptions else None
-        if (var is not None and var.causality in ("output", "local") and _not_exchanged(var) is None
-                and (ref.unit, ref.name) not in recorded):
-            recorded.append((ref.unit, ref.name))
-    limits: dict[Port, float] = {}
-    for text, limit in sc.limits.max_abs.items():
-        p = port(VariableRef.parse(text), "output", "limits", "max_abs", text)
-        if p is not None and descriptions[p[0]].variables[p[1]].fmi_type == "String":
-            problems.append(loaded.problem(f"{text} is a String: max_abs needs a number", "limits", "max_abs", text))
-        elif p is not None:
-            limits[p] = limit
+        for ref in report.optional_variables() if report is not None else ():  # recorded where the unit has them
+            var = self.descriptions[ref.unit].variables.get(ref.name) if ref.unit in self.descriptions else None
+            if (var is not None and var.causality in ("output", "local") and _not_exchanged(var) is None
+                    and (ref.unit, ref.name) not in recorded):
+                recorded.append((ref.unit, ref.name))
+        return recorded
 
-    order = sc.simulation.order
-    if order is not None and sorted(order) != sorted(sc.units):
-        problems.append(loaded.problem(f"must list every unit once: {', '.join(sc.units)}", "simulation", "order"))
+    def limits(self) -> dict[Port, float]:
+        """The ``limits.max_abs`` bounds by port (numbers only)."""
+        limits: dict[Port, float] = {}
+        for text, limit in self.sc.limits.max_abs.items():
+            p = self.port(VariableRef.parse(text), "output", "limits", "max_abs", text)
+            if p is not None and self.descriptions[p[0]].variables[p[1]].fmi_type == "String":
+                self.problem(f"{text} is a String: max_abs needs a number", "limits", "max_abs", text)
+            elif p is not None:
+                limits[p] = limit
+        return limits
 
-    if len(descriptions) == len(sc.units) and not problems:
-        try:
-            propagation_order(descriptions, links)
-        except AlgebraicLoopError as exc:
-            problems.append(loaded.problem(str(exc), "connections"))
+    # -- the system as a whole ----------------------------------------------------------------------------
+    def check_system(self, links: list[Link], watched: list[Port]) -> None:
+        """The unit order lists every unit, no algebraic loop (when all else is fine), the executor can run it."""
+        sc, loaded, descriptions = self.sc, self.loaded, self.descriptions
+        order = sc.simulation.order
+        if order is not None and sorted(order) != sorted(sc.units):
+            self.problem(f"must list every unit once: {', '.join(sc.units)}", "simulation", "order")
+        if len(descriptions) == len(sc.units) and not self.problems:
+            try:
+                propagation_order(descriptions, links)
+            except AlgebraicLoopError as exc:
+                self.problem(str(exc), "connections")
+        if sc.simulation.executor == "native" and len(descriptions) == len(sc.units):
+            text = _native_problem(loaded, descriptions, links, watched)
+            if text is not None:
+                self.problem(text, "simulation", "executor")
 
-    if sc.simulation.executor == "native" and len(descriptions) == len(sc.units):
-        text = _native_problem(loaded, descriptions, links, recorded + list(limits))
+    def check_result_size(self, n_recorded: int) -> None:
+        text = result_size_problem(self.sc.simulation, n_recorded, Path(self.sc.results.dir))
         if text is not None:
-            problems.append(loaded.problem(text, "simulation", "executor"))
-
-    text = result_size_problem(sc.simulation, len(recorded), Path(sc.results.dir))
-    if text is not None:
-        problems.append(loaded.problem(text, "simulation", "stop_time"))
-
-    if problems:
-        raise ScenarioError(problems)
-    provenance = hooks.provenance() if hooks.provenance is not None else {}
-    return SystemPlan(loaded, fmu_paths, descriptions, parameters, links, recorded, limits, data_files, provenance,
-                      report, hooks.report, hashes, periods)
+            self.problem(text, "simulation", "stop_time")
 
 
 def _unit_periods(loaded: LoadedScenario, descriptions: dict[str, UnitDescription],
@@ -528,7 +638,7 @@ def _domain_problems(loaded: LoadedScenario, name: str, desc: UnitDescription, p
                      hooks: ResolveHooks) -> list[Problem]:
     """The application's domain checks of one unit's parameters (``ResolveHooks.parameter_check``) as Problems:
     at the parameter's key when the scenario sets it, else at the unit (the declared start is at fault)."""
-    resolved = {v.name: _start_value(v) for v in desc.variables.values()
+    resolved = {v.name: start_value(v) for v in desc.variables.values()
                 if v.causality == "parameter" and v.start is not None}
     resolved.update(values)
     problems = []
@@ -539,21 +649,6 @@ def _domain_problems(loaded: LoadedScenario, name: str, desc: UnitDescription, p
             start = " (declared start value)" if pname in desc.variables else ""
             problems.append(loaded.problem(f"{pname}{start}: {text}", "units", name))
     return problems
-
-
-def _start_value(var: Variable) -> Any:
-    """A declared start value (text in the model description) as the Python value a scenario would set."""
-    text = str(var.start)
-    try:
-        if var.type in ("Real", "Float64", "Float32"):
-            return float(text)
-        if var.type == "Boolean":
-            return text.strip().lower() in ("true", "1")
-        if var.type in INTEGER_RANGES or var.type == "Enumeration":
-            return int(text)
-    except ValueError:
-        return text
-    return var.start
 
 
 def _plain_path_problem(value: str, kind: str | None, hooks: ResolveHooks) -> str | None:

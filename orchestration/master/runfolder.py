@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import math
 import os
@@ -17,6 +16,7 @@ from typing import Any
 from mre_common.atomic_files import atomic_write, atomic_write_text
 from mre_common.folder_claim import claim_folder
 from mre_common.fs_limits import name_problem, path_problem
+from mre_common.hashing import file_sha256
 
 STAMP_RESERVE = len("-20261202T063000Z-999")
 """Bytes a run folder's name gets after the scenario's name (UTC time stamp, numeric suffix)."""
@@ -106,37 +106,51 @@ def new_run_folder(base: Path, name: str, explicit: Path | None = None) -> Path:
     that cannot be created or written raises :class:`RunFolderUnusable` naming the path.
     """
     if explicit is not None:
-        explicit = Path(os.path.abspath(explicit))  # resolved now: a later os.chdir cannot move it
-        problem = path_problem(explicit, INSIDE_RESERVE)
-        if problem:
-            raise RunFolderUnusable(f"--out {problem}: choose a shorter --out (nothing was written)")
-        parents = _missing_ancestors(explicit.parent)
+        return _explicit_folder(Path(os.path.abspath(explicit)))  # resolved now: a later os.chdir cannot move it
+    return _stamped_folder(base, name)
+
+
+def _explicit_folder(explicit: Path) -> Path:
+    """``--out``: created (with its missing parents) or empty, then claimed; the parents this run created are
+    removed again when it cannot be."""
+    problem = path_problem(explicit, INSIDE_RESERVE)
+    if problem:
+        raise RunFolderUnusable(f"--out {problem}: choose a shorter --out (nothing was written)")
+    parents = _missing_ancestors(explicit.parent)
+    try:
+        _claim(explicit, _made_or_empty(explicit))
+    except RunFolderExists:
+        for folder in parents:  # deepest first; only empty folders this run created
+            _remove_created(folder, True)
+        raise
+    return explicit
+
+
+def _made_or_empty(explicit: Path) -> bool:
+    """Create ``explicit`` (True) or find it an empty folder (False); RunFolderExists/RunFolderUnusable else."""
+    try:
+        explicit.parent.mkdir(parents=True, exist_ok=True)
         try:
-            try:
-                explicit.parent.mkdir(parents=True, exist_ok=True)
-                try:
-                    explicit.mkdir()
-                    created = True
-                except FileExistsError:
-                    created = False
-                    if not explicit.is_dir():
-                        raise RunFolderUnusable(f"{explicit} is a file, not a folder: choose another --out "
-                                                "(nothing was written)") from None
-                    if any(explicit.iterdir()):
-                        raise RunFolderExists(
-                            f"{explicit} exists and is not empty: choose another --out (nothing was written)"
-                        ) from None
-            except RunFolderExists:
-                raise
-            except OSError as exc:
-                raise RunFolderUnusable(f"{explicit}: cannot create the run folder ({_why(exc, explicit)}); "
-                                        "choose another --out (nothing was written)") from None
-            _claim(explicit, created)
-        except RunFolderExists:
-            for folder in parents:  # deepest first; only empty folders this run created
-                _remove_created(folder, True)
-            raise
-        return explicit
+            explicit.mkdir()
+            return True
+        except FileExistsError:
+            if not explicit.is_dir():
+                raise RunFolderUnusable(f"{explicit} is a file, not a folder: choose another --out "
+                                        "(nothing was written)") from None
+            if any(explicit.iterdir()):
+                raise RunFolderExists(
+                    f"{explicit} exists and is not empty: choose another --out (nothing was written)"
+                ) from None
+            return False
+    except RunFolderExists:
+        raise
+    except OSError as exc:
+        raise RunFolderUnusable(f"{explicit}: cannot create the run folder ({_why(exc, explicit)}); "
+                                "choose another --out (nothing was written)") from None
+
+
+def _stamped_folder(base: Path, name: str) -> Path:
+    """``base/<name>-<UTC timestamp>``, with a numeric suffix if taken, created and claimed."""
     if not name or any(c in name for c in "/\\\x00") or name.startswith("."):
         raise RunFolderUnusable(f"{name!r} cannot name a run folder inside {base}: a plain name is needed "
                                 "(no '/' or '\\', not starting with '.'); nothing was written")
@@ -205,13 +219,7 @@ def write_text(path: Path, text: str) -> None:
     atomic_write_text(path, text)
 
 
-def sha256(path: Path) -> str:
-    """SHA-256 of a file."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+sha256 = file_sha256  # the name orchestration.engine_hooks imports (mre_common.hashing holds the hasher)
 
 
 def package_versions(names: Sequence[str] = ("fmpy", "pythonfmu", "numpy", "scipy", "matplotlib", "pydantic",

@@ -103,11 +103,11 @@ class UnitSpec(_Strict):
     fmu: str
     parameters: dict[str, ParamValue] = Field(default_factory=dict)
     interface: Literal["co-simulation", "model-exchange"] | None = Field(
-        None, description="co-simulation or model-exchange (default: co-simulation when the FMU has it)")
+        default=None, description="co-simulation or model-exchange (default: co-simulation when the FMU has it)")
     relative_tolerance: Annotated[Number, Field(gt=0, lt=1)] | None = Field(
-        None, description="relative tolerance of the model-exchange solver (default 1e-6)")
+        default=None, description="relative tolerance of the model-exchange solver (default 1e-6)")
     step: Annotated[Number, Field(gt=0)] | None = Field(
-        None, description="the unit's own communication step [s]: a whole multiple of simulation.step "
+        default=None, description="the unit's own communication step [s]: a whole multiple of simulation.step "
                           "(default: simulation.step)")
 
     @model_validator(mode="after")
@@ -133,20 +133,21 @@ class SimulationSpec(_Strict):
 
     step: Number = Field(gt=0, description="communication step [s]")
     stop_time: Number = Field(description="[s]")
-    start_time: Number = Field(0.0, description="[s]")
+    start_time: Number = Field(default=0.0, description="[s]")
     algorithm: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
     inputs: Literal["step-mean", "hold"] = Field(
-        "step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
+        default="step-mean", description="inputs held over a step: estimated mean of the source, or its latest value"
     )
     order: list[str] | None = None
     executor: Literal["auto", "native", "python"] = Field(
-        "auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
+        default="auto", description="who runs the steps: the C loop (native), Python, or native when it can (auto)"
     )
     output_interval: StrictInt = Field(
-        1, ge=1, le=MAX_STEPS, description="the results file holds every n-th communication point (and the last); "
-                                           "the summary's peaks and statistics still come from every step")
+        default=1, ge=1, le=MAX_STEPS,
+        description="the results file holds every n-th communication point (and the last); "
+                    "the summary's peaks and statistics still come from every step")
     output_format: Literal["csv", "parquet"] = Field(
-        "csv", description="timeseries.csv (12 significant digits), or timeseries.parquet (float64, zstd)")
+        default="csv", description="timeseries.csv (12 significant digits), or timeseries.parquet (float64, zstd)")
 
     @model_validator(mode="after")
     def _grid(self) -> SimulationSpec:
@@ -226,7 +227,7 @@ class ReportSpec(_Strict):
 
     model_config = ConfigDict(extra="allow")
 
-    caption: str = Field("", description="what was run, for every figure: {unit.param} is filled with the "
+    caption: str = Field(default="", description="what was run, for every figure: {unit.param} is filled with the "
                                          "run's value (e.g. '{ground.record} x{ground.scale}')")
     labels: dict[str, str] = Field(default_factory=dict, description="readable names: 'unit.variable' or "
                                                                       "'unit.param=value' -> text")

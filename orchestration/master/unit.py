@@ -71,6 +71,27 @@ def exchange_kind(fmi_type: str) -> str:
     return _SAME_VALUES.get(fmi_type, fmi_type)
 
 
+def start_value(var: Variable) -> Any:
+    """A declared start value (text in the model description) as the Python value a scenario would set for it.
+
+    By the declared type (:attr:`Variable.fmi_type`), as the FMI XML schema reads the text: Real and
+    FloatNN as float (``INF``, ``-INF``, ``NaN`` included), the integer types and Enumeration as int,
+    Boolean as xs:boolean (``true``/``1``, surrounding white space ignored, case as written or not);
+    text that does not parse, and every other type (String, arrays, ...), is kept as it is.
+    """
+    fmi_type, start = var.fmi_type, var.start
+    try:
+        if fmi_type.startswith(("Real", "Float")):
+            return float(start)
+        if fmi_type in INTEGER_RANGES or fmi_type == "Enumeration":
+            return int(start)
+    except (TypeError, ValueError):
+        return start
+    if fmi_type == "Boolean":
+        return str(start).strip().lower() in ("true", "1")
+    return start
+
+
 def value_range(fmi_type: str, fmi_version: str = "2.0") -> tuple[int, int] | None:
     """The range of an integer or enumeration type (FMI 2.0 enumerations are 32-bit, FMI 3.0 ones 64-bit)."""
     if fmi_type == "Enumeration":
@@ -120,7 +141,17 @@ class Unit(Protocol):
     def exit_initialization(self) -> None:
         """Leave initialization mode; the unit is ready to step."""
 
-    def prepare(self, refs: Sequence[int]) -> Any:
+    @property
+    def time(self) -> float | None:
+        """The unit's time as error messages report it: t before a step, t + h after it [s] (None before setup)."""
+
+    @time.setter
+    def time(self, value: float) -> None:
+        """Set by an executor that stepped the unit outside Python (the native one)."""
+
+    # ``handle``: what prepare returned, opaque to the master and handed back to the same unit only (each unit
+    # type has its own kind; an FMU unit's is a ValueBuffer)
+    def prepare(self, refs: Sequence[int]) -> object:
         """An opaque handle for a fixed list of Real value references (prepared once)."""
 
     def get_real(self, handle: Any) -> np.ndarray:
@@ -141,3 +172,10 @@ class Unit(Protocol):
 
     def terminate(self) -> None:
         """Terminate and free; safe to call more than once and after a failed setup."""
+
+    def native_functions(self) -> tuple[int, int, int, int] | None:
+        """Addresses of (component, SetReal, GetReal, DoStep) for the native executor, or None: it cannot drive
+        this unit (not an instantiated FMI 2.0 co-simulation FMU)."""
+
+    def raise_status(self, function: str, status: int) -> None:
+        """Translate an FMI status that ``function`` of this unit returned outside Python (raises above warning)."""

@@ -258,8 +258,7 @@ def read_strategy_file(path: Path) -> dict[str, Strategy]:
 
 def _checked(strategies: dict[str, Strategy]) -> dict[str, Strategy]:
     """``strategies`` if every number of every entry's parameters is finite and no text holds a NUL, else
-    ScenarioError naming each one at its key and line: a strategy a study defines but does not list is checked too
-    (issue 26, class 5)."""
+    ScenarioError naming each one at its key and line: a strategy a study defines but does not list is checked too."""
     problems = []
 
     def walk(strategy: Strategy, key: tuple[Any, ...], value: Any) -> None:
