@@ -30,7 +30,7 @@ sys.path.insert(0, str(PROJECT))
 from components.physics.ground_motion_core import GroundMotion, read_record  # noqa: E402
 from components.physics.monolithic import SystemSetup, Trajectory  # noqa: E402
 from orchestration.inprocess import simulate_coupled  # noqa: E402
-from tests.monolithic_oracle import simulate_coupled as oracle  # noqa: E402
+from tests.support.monolithic_oracle import simulate_coupled as oracle  # noqa: E402
 
 RECORD = PROJECT / "scenarios" / "records" / "kobe_1995_jma_ns.csv"
 H = 1e-3

@@ -56,7 +56,7 @@ import yaml
 PROJECT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(PROJECT))
 
-from tests.tree_mutation import key_paths, mutate  # noqa: E402  (the hostile-input tests' mutations)
+from tests.support.tree_mutation import key_paths, mutate  # noqa: E402  (the hostile-input tests' mutations)
 
 SC = PROJECT / "scenarios"
 RECORDS = SC / "records"
@@ -957,7 +957,7 @@ def engine_cases(base: Path, package: Path) -> list[Case]:
     typed = base / "typed"
     typed.mkdir(exist_ok=True)
     try:
-        from tests.typed_build import build_typed2
+        from tests.support.typed_build import build_typed2
 
         typed_fmu: Path | None = build_typed2(typed)
     except Exception:  # no C compiler: the native cases are left out
@@ -2025,7 +2025,7 @@ def _results(rows: list[dict[str, str]] | bytes) -> Callable[[Path], None]:
 
 
 def stop37_cases(base: Path) -> list[Case]:
-    """The inputs stop 37 added: the results file's interval and format, a strategy's role mapping, and the
+    """The inputs of class 37/: the results file's interval and format, a strategy's role mapping, and the
     inspect, compare and verdict tools (files that are not what they claim, names long or with ../, numbers that
     are not)."""
     cases: list[Case] = []

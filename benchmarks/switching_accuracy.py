@@ -35,7 +35,7 @@ from pathlib import Path
 PROJECT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(PROJECT))
 
-from tests import switching_cases as cases  # noqa: E402
+from tests.support import switching_cases as cases  # noqa: E402
 
 LABELS = {"passive-on": "passive 3 A", "sosm": "SOSM", "on-off": "on-off", "clipped-optimal": "clipped-optimal",
           "lyapunov": "Lyapunov", "frequency": "frequency"}

@@ -100,7 +100,7 @@ def _sensor_channels(values: Mapping[str, Any], levels: int) -> tuple[str, str] 
 CHECKS: dict[str, Check] = {
     "ShearBuilding": _shear_building,
     "MreIsolator": _isolator,
-    "MreIsolatorC": _isolator,  # the plain-C unit implements the same law (tests/test_c_isolator.py)
+    "MreIsolatorC": _isolator,  # the plain-C unit implements the same law (tests/physics/test_c_isolator.py)
     "BoucWenIsolator": _bouc_wen_isolator,
     "ClippedOptimalCurrentController": _clipped_optimal,
     "LyapunovCurrentController": _lyapunov,

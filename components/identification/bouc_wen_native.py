@@ -13,7 +13,7 @@ libmvec), else the plain C one. Without either (no compiler), or with
 ``MRE_COSIM_BOUC_WEN=numpy`` in the environment, the numpy loop runs instead (exactly
 ``bouc_wen_core``'s, tested bit for bit). C and numpy do the same floating-point operations
 in the same order; they can differ in the last bits of ``pow`` and ``expm1`` (numpy uses its
-own SIMD versions on some CPUs), see tests/test_bouc_wen.py. Units: any consistent length
+own SIMD versions on some CPUs), see tests/physics/test_bouc_wen.py. Units: any consistent length
 unit for x, dx_max and 1/beta, 1/gamma, 1/delta (identification: mm); y is dimensionless.
 """
 

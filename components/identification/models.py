@@ -23,7 +23,7 @@ BW_DELTA_MM = 1.0  # delta fixed at 1 per mm (see components.physics.bouc_wen_co
 # Sub-step control of the Bouc-Wen integrator in identification (see bouc_wen_core.substeps):
 # at most 0.2 mm and 2/Lam per sub-step, at most 4 sub-steps per sample. Coarser than the
 # FMU's defaults to keep FFOA affordable; the scheme stays stable, and for the parameters
-# FFOA ends at the state error is below 1 % of the envelope (tests/test_bouc_wen.py).
+# FFOA ends at the state error is below 1 % of the envelope (tests/physics/test_bouc_wen.py).
 BW_DX_MAX_MM = 0.2
 BW_LAM_DX_MAX = 2.0
 BW_CAP = 4

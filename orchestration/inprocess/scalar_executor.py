@@ -14,7 +14,7 @@ It decides nothing itself: order, rules, dead reads and feedthrough propagation 
 program, the extrapolation weights and the history from the algorithm. Each input is the same
 floating-point expression as in :meth:`CouplingAlgorithm.step` (``0.5 * (now + latest)``,
 ``c0 * now + c1 * before + c2 * earlier``), so both executors give identical results, bit for bit
-(tests/test_inprocess.py checks every scheme and input estimate).
+(tests/engine/test_inprocess.py checks every scheme and input estimate).
 """
 
 from __future__ import annotations

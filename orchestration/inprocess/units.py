@@ -11,7 +11,7 @@ Fast path: the algorithm exchanges the same prepared reference sets every step; 
 handle knows whether it is the unit's whole input (or output) vector in declaration
 order, so ``set_real``/``get_real`` then move the values with no per-call look-up.
 The values and the floating-point operations are those of the FMU shells: equal results
-bit for bit (tests/test_inprocess.py checks it against the FMU co-simulation).
+bit for bit (tests/engine/test_inprocess.py checks it against the FMU co-simulation).
 """
 
 from __future__ import annotations

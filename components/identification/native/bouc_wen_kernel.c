@@ -16,7 +16,7 @@
  * NaN, clip(NaN) is NaN. Compiled with -ffp-contract=off (no fused multiply-add; the
  * -fno-math-errno -fno-trapping-math that let the loop vectorise change no value). Results
  * equal the numpy path up to the last bits of pow and expm1 (numpy uses its own SIMD
- * versions of these two on some CPUs; tests/test_bouc_wen.py bounds the difference).
+ * versions of these two on some CPUs; tests/physics/test_bouc_wen.py bounds the difference).
  */
 #include <math.h>
 #include <stdint.h>
