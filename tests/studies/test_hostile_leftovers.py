@@ -1,5 +1,5 @@
-"""Hostile inputs of the study files: values set but unused by the chosen law, strategies defined but not listed, a NUL in a
-String, a bound on every wait for the Dask workers, and a full disk that is said to be what it is."""
+"""Hostile inputs of the study files: values set but unused by the chosen law, strategies defined but not listed,
+a NUL in a string, a bound on every wait for the Dask workers, and a full disk that is said to be what it is."""
 
 from __future__ import annotations
 
