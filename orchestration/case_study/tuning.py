@@ -20,7 +20,6 @@ set ``scenarios/sosm_gains_fig15.yaml``).
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Mapping
@@ -33,12 +32,13 @@ import yaml
 
 from components.physics.sosm_controller_core import SosmGains
 from mre_common.guard import invoked_as
+from mre_common.project_paths import git
 from orchestration.building_studies.in_process_model import DEFAULT_GAINS, NotMonolithic, system_setup
 from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.building_studies.run_settings import run_overrides
 from orchestration.case_study.case_config import LoadedStudy, ObjectiveSpec, TuningSpec, load_study
 from orchestration.case_study.objective import evaluate_setting, objective
-from orchestration.engine_hooks import PROJECT_DIR, plan_scenario
+from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.runfolder import write_text
@@ -280,8 +280,8 @@ def gains_document(study: LoadedStudy, result: dict[str, Any], checks: dict[str,
         },
         "check_other_records": checks,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "commit": _git("rev-parse", "HEAD"),
-        "uncommitted_changes": bool(_git("status", "--porcelain", "--", "components", "orchestration")),
+        "commit": git("rev-parse", "HEAD"),  # None outside a git checkout
+        "uncommitted_changes": bool(git("status", "--porcelain", "--", "components", "orchestration")),
     }
     if evaluations is not None:
         doc["evaluations"] = evaluations
@@ -289,14 +289,6 @@ def gains_document(study: LoadedStudy, result: dict[str, Any], checks: dict[str,
     head = ("# SOSM gains written by the tuning procedure (docs/case_study.md); do not edit by hand.\n"
             f"# Reproduce: python orchestration/tune.py scenarios/{study.path.name}{option} --force\n")
     return head + yaml.safe_dump(doc, sort_keys=False, width=100000, default_flow_style=None)
-
-
-def _git(*args: str) -> str:
-    try:
-        return subprocess.run(["git", *args], cwd=PROJECT_DIR, capture_output=True,
-                              text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ""
 
 
 def gain_set_overrides(study: LoadedStudy, strategy: str) -> tuple[str, ...]:
