@@ -73,13 +73,18 @@ def declared_choices(description: str) -> tuple[str, ...]:
     return tuple(q[1:-1] for q in re.findall(_QUOTED, m.group(1))) if m else ()
 
 
+def did_you_mean(word: str, options: Sequence[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``options`` to ``word`` (difflib, ratio >= 0.6), else ``""``."""
+    close = difflib.get_close_matches(word, list(options), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 def _choice_problem(var: Any, value: Any) -> str | None:
     """Why a String parameter's value is not one of its declared choices, or None."""
     choices = declared_choices(var.description) if var.type == "String" else ()
     if not choices or value in choices:
         return None
-    close = difflib.get_close_matches(str(value), choices, n=1, cutoff=0.6)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    hint = did_you_mean(str(value), choices)
     return f"{var.name} = {value!r} is not one of {', '.join(repr(c) for c in choices)}{hint}"
 
 
@@ -111,8 +116,7 @@ def typed_parameter(var: Variable, value: Any, fmi_version: str = "2.0") -> tupl
         if isinstance(value, str):
             if value in names:
                 return names[value], None
-            close = difflib.get_close_matches(value, list(names), n=1, cutoff=0.6)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint = did_you_mean(value, list(names))
             return value, f"{var.name!r} is an Enumeration with items {listed}; {value!r} is none of them{hint}"
         if _compatible(fmi_type, value) and value in names.values():
             return value, None
@@ -425,7 +429,9 @@ class _Resolution:
             return
         var = desc.variables.get(pname)
         if var is None:
-            self.problem(f"{desc.model_identifier} has no variable {pname!r}", *key)
+            settable = [v.name for v in desc.variables.values()
+                        if v.causality in ("parameter", "input") and v.variability != "constant"]
+            self.problem(f"{desc.model_identifier} has no variable {pname!r}{did_you_mean(pname, settable)}", *key)
             return
         if var.causality not in ("parameter", "input") or var.variability == "constant":
             self.problem(f"{pname!r} is a {var.variability} {var.causality}, not a settable parameter", *key)
@@ -472,7 +478,9 @@ class _Resolution:
             return None  # the unit's own problem is reported already
         var = desc.variables.get(ref.name)
         if var is None:
-            self.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}", *key)
+            wanted = [v.name for v in desc.variables.values() if v.causality in (causality, *also)]
+            hint = did_you_mean(ref.name, wanted)
+            self.problem(f"{ref.unit} ({desc.model_identifier}) has no variable {ref.name!r}{hint}", *key)
             return None
         if var.causality != causality and var.causality not in also:
             expected = " or ".join((causality, *also))

@@ -205,6 +205,20 @@ def test_parameter_problems(fmu_dir, tmp_path):
     assert "outputs[0]: building (ShearBuilding) has no variable 'x_9'" in found
 
 
+def test_a_misspelt_variable_gets_the_closest_name_of_the_right_causality(fmu_dir, tmp_path):
+    conns = """
+        - ground.ag -> building.ag
+        - building.x_0 -> isolator.xx
+        - building.v_0 -> isolator.v
+        - isolator.Ff -> building.F"""
+    text = system_yaml(fmu_dir, connections=conns).replace("scale: 0.5", "scale: 0.5, scal: 1.0, zzzz: 1.0")
+    found = "\n".join(resolve_problems(write(tmp_path, text)))
+    assert "GroundMotionSource has no variable 'scal' (did you mean 'scale'?)" in found
+    assert "GroundMotionSource has no variable 'zzzz'\n" in found + "\n"  # nothing close: no suggestion
+    assert "isolator (MreIsolator) has no variable 'xx' (did you mean 'x'?)" in found  # an input, not the output F
+    assert "isolator (MreIsolator) has no variable 'Ff' (did you mean 'F'?)" in found
+
+
 def test_missing_record_lists_the_places_searched(fmu_dir, tmp_path):
     text = system_yaml(fmu_dir).replace("elcentro_1940_ns.csv", "missing_quake.csv")
     found = "\n".join(resolve_problems(write(tmp_path, text)))
