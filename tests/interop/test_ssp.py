@@ -220,7 +220,7 @@ def test_unknown_parameter_is_reported_at_its_ssv_line(kobe_ssp, tmp_path):
     with pytest.raises(ScenarioError) as exc:
         resolve_scenario(loaded)
     (problem,) = _problems(exc)
-    assert problem.message == "MreIsolator has no variable 'n_isolator'"
+    assert problem.message == "MreIsolator has no variable 'n_isolator' (did you mean 'n_isolators'?)"
     assert problem.file.endswith("bad.ssp!/resources/isolator.ssv") and problem.line == 4
     loaded.cleanup()
 
