@@ -38,10 +38,11 @@ import numpy as np
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import ScenarioError, SimulationError
 from orchestration.master.execution import StopRequest
+from orchestration.master.figure_files import FigureFiles
 from orchestration.master.resolve import SystemPlan
 from orchestration.master.session import run_plan
 
-__all__ = ["Results", "ScenarioError", "SimulationError", "SystemPlan", "load_scenario", "run"]
+__all__ = ["FigureFiles", "Results", "ScenarioError", "SimulationError", "SystemPlan", "load_scenario", "run"]
 
 
 def _path(value: Any, argument: str, function: str) -> Path:
@@ -139,8 +140,12 @@ def run(
     plots: bool = False,
     progress: bool = False,
     stop: StopRequest | None = None,
+    figure_files: FigureFiles | None = None,
 ) -> Results:
     """Run a checked plan and write its run folder (``out``, or a new one under the scenario's results dir).
+
+    ``figure_files`` (with ``plots``): the PNG resolution and the vector formats written beside each PNG
+    (``FigureFiles(dpi=300, formats=("svg",))``); a bad value is a ValueError before anything is written.
 
     ``plan`` may also be a scenario file or SSP package path (loaded with :func:`load_scenario`).
     A unit failure does not raise, nor does a unit that cannot be loaded (its FMU changed or
@@ -160,7 +165,9 @@ def run(
             raise TypeError(f"run(): {name} must be True or False, got {value!r}")
     if stop is not None and not isinstance(stop, StopRequest):
         raise TypeError(f"run(): stop must be a StopRequest or None, got {type(stop).__name__}")
-    outcome = run_plan(plan, folder, plots, progress, stop)
+    if figure_files is not None and not isinstance(figure_files, FigureFiles):
+        raise TypeError(f"run(): figure_files must be a FigureFiles or None, got {type(figure_files).__name__}")
+    outcome = run_plan(plan, folder, plots, progress, stop, figure_files)
     rec = outcome.recorder
     columns = {name: rec.data[: rec.count, k].copy() for k, name in enumerate(rec.names)}
     result = outcome.result

@@ -167,6 +167,13 @@ def displacement_limits(spec: BuildingReport, run: RunDescription) -> dict[str, 
     return out
 
 
+def named(run: RunDescription, ref: str, role: str) -> str:
+    """A variable's name in a figure: the scenario's label for it, else its role in words with the variable
+    (``base displacement (building.x_0)``), so an axis never shows a bare variable name."""
+    label = run.label(ref)
+    return label if label != ref else f"{role} ({ref})"
+
+
 def plot(spec: BuildingReport, rec: Recorder, run: RunDescription, figures: Figures) -> None:
     """PNG figures for the roles present: top-floor acceleration with the ground, drifts, current, hysteresis.
 
@@ -190,20 +197,23 @@ def plot(spec: BuildingReport, rec: Recorder, run: RunDescription, figures: Figu
         lines = []
         if spec.ground_acceleration is not None:
             ground = str(spec.ground_acceleration)
-            lines.append((rec.column(ground), f"{run.label(ground)}", {"color": "0.6", "lw": 0.6}))
-        lines.append((rec.column(top), run.label(top), {"color": "C0"}))
-        figures.save(time_figure(f"absolute acceleration: {run.label(top)}", "acceleration [m/s²]", lines),
+            lines.append((rec.column(ground), named(run, ground, "ground acceleration"), {"color": "0.6", "lw": 0.6}))
+        lines.append((rec.column(top), named(run, top, "top floor"), {"color": "C0"}))
+        figures.save(time_figure(f"absolute acceleration: {named(run, top, 'top floor')}", "acceleration [m/s²]",
+                                 lines),
                      "top_floor_acceleration.png")
     if spec.drifts:
-        lines = [(1e3 * rec.column(str(r)), run.label(str(r)), {}) for r in spec.drifts]
+        lines = [(1e3 * rec.column(str(r)), named(run, str(r), f"storey {k}"), {})
+                 for k, r in enumerate(spec.drifts, start=1)]
         figures.save(time_figure("inter-storey drifts", "drift [mm]", lines), "drifts.png")
     if spec.current is not None:
         ref = str(spec.current)
-        lines = [(rec.column(ref), run.label(ref), {})]
+        lines = [(rec.column(ref), named(run, ref, "current command"), {})]
         if spec.device_current is not None:
             dev = str(spec.device_current)
-            lines.append((rec.column(dev), run.label(dev), {"ls": "--"}))
-        title = "current: commanded and in the device" if len(lines) > 1 else f"command: {run.label(ref)}"
+            lines.append((rec.column(dev), named(run, dev, "device current"), {"ls": "--"}))
+        title = "current: commanded and in the device" if len(lines) > 1 else \
+            f"command: {named(run, ref, 'current command')}"
         figures.save(time_figure(title, "current [A]", lines), "current.png")
     if spec.isolator_force is not None and spec.base_displacement is not None:
         fig, ax = figures.plt.subplots(figsize=(6, 4.6))
@@ -215,7 +225,8 @@ def plot(spec: BuildingReport, rec: Recorder, run: RunDescription, figures: Figu
             for sign in (1, -1):
                 ax.axvline(sign * 1e3 * edge, color=color, ls=ls, lw=0.9, label=f"{label} ±{1e3 * edge:g} mm"
                            if sign == 1 else None)
-        ax.set(xlabel=f"{run.label(x_ref)} [mm]", ylabel=f"{run.label(f_ref)} [N]",
+        ax.set(xlabel=f"{named(run, x_ref, 'base displacement')} [mm]",
+               ylabel=f"{named(run, f_ref, 'isolator force')} [N]",
                title=f"{figures.head}\nhysteresis")
         ax.legend(fontsize=7, loc="upper left")
         ax.grid(alpha=0.3)

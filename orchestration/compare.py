@@ -28,6 +28,7 @@ if __name__ == "__main__":
 import argparse
 
 from orchestration.cli import EPILOG_COMMON, EXIT_OK, UsageError, invoked_as, run_tool
+from orchestration.figure_options import add_figure_arguments, figure_files
 
 EXIT_CODES = ("exit codes: 0 success; 2 a folder that is not a run, no variable in common, or an output folder "
               "that is not empty (nothing written); " + EPILOG_COMMON)
@@ -40,10 +41,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         "reference")
     parser.add_argument("--out", type=Path, help="write peaks.csv and the overlay figures here (a new or empty "
                         "folder)")
-    parser.add_argument("--format", dest="formats", nargs="+", choices=("svg", "pdf"), default=["svg"],
-                        help="vector formats written beside the PNG (default: svg)")
-    parser.add_argument("--dpi", type=int, default=150, help="PNG resolution (default 150)")
-    return parser.parse_args(argv)
+    add_figure_arguments(parser, dpi=150, formats=("svg",))
+    args = parser.parse_args(argv)
+    args.figure_files = figure_files(args)
+    return args
 
 
 def _compare(argv: list[str] | None) -> int:
@@ -53,8 +54,6 @@ def _compare(argv: list[str] | None) -> int:
     args = parse_args(argv)
     if len(args.runs) < 2:
         raise UsageError("give at least two run folders")
-    if not 10 <= args.dpi <= 1200:
-        raise UsageError(f"--dpi {args.dpi}: give 10 to 1200 dots per inch")
     out: Path | None = args.out
     if out is not None:
         check_output_folder(out)
@@ -77,7 +76,7 @@ def _compare(argv: list[str] | None) -> int:
         return EXIT_OK
 
     def write(folder: Path, written: list[Path]) -> None:
-        figures(runs, rows, folder, ("png", *args.formats), args.dpi, written)
+        figures(runs, rows, folder, args.figure_files, written)
         write_csv(runs, rows, folder / "peaks.csv")  # last: a folder with peaks.csv is complete
         written.append(folder / "peaks.csv")
 

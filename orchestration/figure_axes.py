@@ -1,8 +1,22 @@
-"""Axis styles the studies' figures share: plain tick labels a reader can read at a glance."""
+"""Axis styles the studies' figures share: plain tick labels a reader can read at a glance, a line style and
+marker per strategy, and a note in the legend where two strategies' curves coincide."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
+
+import numpy as np
+
+COINCIDENT = 0.005
+"""Two curves coincide when they differ nowhere by more than this share of the axis span (0.5 %)."""
+STRATEGY_STYLES = {  # strategy -> (line style, marker): each strategy its own pair, so lines that lie on each
+    # other stay apart by their markers
+    "passive-off": (":", "o"), "passive-on": ("--", "s"), "best-constant": ("-.", "^"), "sosm": ("-", "D"),
+    "sosm-fig15": ((0, (6, 2)), "v"), "on-off": ((0, (5, 1, 1, 1, 1, 1)), "P"),
+    "clipped-optimal": ((0, (3, 1)), "X"), "clipped-optimal-inverse": ((0, (1, 2, 4, 2)), "<"),
+    "lyapunov": ((0, (8, 2, 2, 2)), ">"), "frequency": ((0, (2, 1, 2, 3)), "h")}
+_OTHER_STYLES = tuple((ls, m) for ls in ("-", "--", "-.", ":") for m in ("p", "*", "d", "8", "H"))
 
 
 def plain_log_axis(axis: Any) -> None:
@@ -23,3 +37,49 @@ def few_ticks(axis: Any, n: int = 4) -> None:
 
     axis.set_major_locator(MaxNLocator(n))
     axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
+
+
+def strategy_style(strategy: str, order: Sequence[str] = ()) -> dict[str, Any]:
+    """``ls`` and ``marker`` for a strategy: its own (:data:`STRATEGY_STYLES`), or one by its place in ``order``."""
+    if strategy in STRATEGY_STYLES:
+        ls, marker = STRATEGY_STYLES[strategy]
+    else:
+        k = list(order).index(strategy) if strategy in order else 0
+        ls, marker = _OTHER_STYLES[k % len(_OTHER_STYLES)]
+    return {"ls": ls, "marker": marker}
+
+
+def coincident(curves: Mapping[str, Any], spans: float | Sequence[float], tolerance: float = COINCIDENT
+               ) -> list[tuple[str, str]]:
+    """Pairs ``(earlier, later)`` of curves that coincide: of the same shape, and nowhere apart by more than
+    ``tolerance`` of the axis span (``spans``: one, or one per column of a curve of points, e.g. (x span, y span)).
+    A later curve is paired with the first earlier one it coincides with; curves with a NaN are not compared."""
+    names = list(curves)
+    values = {n: np.asarray(curves[n], dtype=float) for n in names}
+    span = np.asarray(spans, dtype=float)
+    pairs = []
+    for k, later in enumerate(names):
+        for earlier in names[:k]:
+            a, b = values[earlier], values[later]
+            if a.shape != b.shape or not a.size or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+                continue
+            if np.all(np.abs(a - b) <= tolerance * span):
+                pairs.append((earlier, later))
+                break
+    return pairs
+
+
+def coincidence_note(earlier: str, later: str) -> str:
+    """The legend's words for two curves that coincide (the later drawn over the earlier)."""
+    return f"{earlier} coincides with {later}"
+
+
+def add_legend_notes(ax: Any, notes: Sequence[str], **legend: Any) -> None:
+    """The axes' legend with ``notes`` as entries without a line (nothing new without notes and a legend)."""
+    from matplotlib.lines import Line2D
+
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles and not notes:
+        return
+    notes = list(dict.fromkeys(notes))
+    ax.legend([*handles, *(Line2D([], [], ls="none") for _ in notes)], [*labels, *notes], **legend)

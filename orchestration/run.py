@@ -1,8 +1,8 @@
 """Run one co-simulation scenario: ``python orchestration/run.py scenarios/kobe.yaml``.
 
 Writes a new run folder (never overwrites one): ``timeseries.csv``, ``summary.json``,
-``manifest.json`` and PNG plots. Exit codes: 0 success, 1 simulation failure or
-interruption (partial results written and marked incomplete), 2 scenario error
+``manifest.json`` and the figures (PNG; ``--dpi N``, ``--format svg pdf``). Exit codes: 0 success,
+1 simulation failure or interruption (partial results written and marked incomplete), 2 scenario error
 (nothing written), 3 internal error (a bug; the traceback is in the log file named),
 130 interrupted before the run started (nothing written).
 """
@@ -25,6 +25,8 @@ import json
 import signal
 
 from orchestration.cli import EPILOG_COMMON, EXIT_FAILED, EXIT_OK, invoked_as, run_tool
+from orchestration.figure_options import add_figure_arguments, figure_files
+from orchestration.master.figure_files import RUN_DPI
 
 EPILOG = ("exit codes: 0 success (also for a complete run that is numerically invalid: its last lines say so); 1 "
           "simulation failure or interruption (partial results written, marked "
@@ -43,12 +45,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, help="run folder to create (must not exist or be empty)")
     parser.add_argument("--data-dir", dest="data_dirs", action="append", type=Path, default=[],
                         help="folder searched first for !record and !data files (repeatable)")
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+    add_figure_arguments(parser, default_note=str(RUN_DPI))
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--verify-step", action="store_true",
                         help="run again with the plant's coupling step halved and the controller's period fixed; "
                              "each peak's change goes into summary.json (step_convergence)")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    args.figure_files = figure_files(args)
+    return args
 
 
 def last_distinct(messages: list[str], limit: int = UNIT_ERRORS_SHOWN) -> list[str]:
@@ -72,7 +77,7 @@ def _run(argv: list[str] | None) -> int:
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        outcome = run_plan(plan, args.out, not args.no_plots, not args.quiet, stop)
+        outcome = run_plan(plan, args.out, not args.no_plots, not args.quiet, stop, args.figure_files)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from orchestration.master.figure_files import FigureFiles, save_figure
+
 ROLES = (  # report role, what it is, SI unit, display unit, factor SI -> display
     ("base_displacement", "base displacement", "m", "mm", 1e3),
     ("drifts", "storey drift", "m", "mm", 1e3),
@@ -193,13 +195,14 @@ def write_csv(runs: list[Run], rows: list[Row], path: Path) -> None:
             w.writerow([row.role, row.variable, row.unit, *(repr(p) for p in row.peaks)])
 
 
+COMPARE_DPI = 150
+"""The overlays' PNG resolution unless one is asked for [dots per inch]."""
 STYLES = ({"ls": "-"}, {"ls": "--"}, {"ls": ":"}, {"ls": "-."})
 
 
-def figures(runs: list[Run], rows: list[Row], out: Path, formats: tuple[str, ...], dpi: int, made: list[Path]
-            ) -> list[Path]:
-    """One overlay per role (its variables in a grid of panels, a line style per run) in each format; each file
-    is appended to ``made`` as soon as it is written (so a failure can remove them)."""
+def figures(runs: list[Run], rows: list[Row], out: Path, files: FigureFiles, made: list[Path]) -> list[Path]:
+    """One overlay per role (its variables in a grid of panels, a line style per run) as PNG and each of
+    ``files.formats``; each file is appended to ``made`` as soon as it is written (so a failure can remove them)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -235,9 +238,8 @@ def figures(runs: list[Run], rows: list[Row], out: Path, formats: tuple[str, ...
         handles, labels = axes.flat[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="upper center", ncol=1, fontsize=8, frameon=False)
         fig.tight_layout(rect=(0, 0, 1, 1 - 0.07 * len(runs) / n_rows))
-        for ext in formats:
-            path = out / f"{role}.{ext}"
-            fig.savefig(path, dpi=dpi)
-            made.append(path)
-        plt.close(fig)
+        try:
+            save_figure(fig, out / f"{role}.png", files, COMPARE_DPI, tight=False, made=made)
+        finally:
+            plt.close(fig)
     return made

@@ -20,9 +20,11 @@ import numpy as np
 
 from mre_common.atomic_files import atomic_write_text
 from orchestration.case_study.benchmark_criteria import CRITERIA, EFFORT, NAMES, effort, normalised, raw_criteria
+from orchestration.case_study.case_figures import save
 from orchestration.case_study.case_metrics import pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.case_rendering import TIE, Block, fmt
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 
 RANKED = ("J1", "J2", "J3", "J4", "J5", "J6", "J7", "J8")  # the ranking's mean: every lower-is-better criterion
 EXTRA = ("J9_raw", "energy_error")  # J9's raw share E_d / E_in; the coupling's energy error, a fraction of E_in
@@ -178,13 +180,16 @@ def _span(values: list[float]) -> str:
         f"{values[0]:.1f}–{values[-1]:.1f} %"
 
 
-def pareto_plot(rows: Rows, records: list[str], best: str, baseline: str, path: Path) -> Path:
-    """J3 against J5 per record, every strategy a point (the baseline, at (1, 1), left out), the best constant
-    current marked with a star, the non-dominated strategies joined by a line."""
+def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str) -> Any:
+    """J3 against J5 per record, every strategy a point with its own marker (the baseline, at (1, 1), left out),
+    the best constant current a hollow star, the non-dominated strategies joined by a line; the legend says which
+    strategies' points coincide (within 0.5 % of each axis' span)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from orchestration.figure_axes import add_legend_notes, coincidence_note, coincident, strategy_style
 
     n = len(records)
     cols = min(n, 2)
@@ -192,34 +197,42 @@ def pareto_plot(rows: Rows, records: list[str], best: str, baseline: str, path: 
                              squeeze=False)
     names = [s for s in dict.fromkeys(row["strategy"] for row in rows) if s != baseline]
     cmap = plt.get_cmap("tab10")
-    markers = "osD^v<>phX"
+    where: dict[str, list[str]] = {}
     for ax, r in zip(axes.flat, records, strict=False):
-        points = []
+        points: dict[str, tuple[float, float]] = {}
         for k, s in enumerate(names):
             row = next((x for x in rows if x["record"] == r and x["strategy"] == s), None)
             if row is None or not (math.isfinite(row["J3"]) and math.isfinite(row["J5"])):
                 continue
             is_best = s == best
-            points.append((row["J3"], row["J5"]))
-            ax.scatter(row["J3"], row["J5"], s=260 if is_best else 50, marker="*" if is_best else markers[k % 10],
-                       color="k" if is_best else cmap(k % 10), zorder=3, label=s)
-        front = sorted(points[k] for k in pareto_front(points))
+            points[s] = (row["J3"], row["J5"])
+            ax.scatter(row["J3"], row["J5"], s=260 if is_best else 50,
+                       marker="*" if is_best else strategy_style(s, names)["marker"],
+                       facecolors="none" if is_best else cmap(k % 10), edgecolors="k" if is_best else "face",
+                       zorder=4 if is_best else 3, label=s)
+        front = sorted(list(points.values())[k] for k in pareto_front(list(points.values())))
         if len(front) > 1:
             ax.plot(*zip(*front, strict=True), color="0.6", lw=1, zorder=1)
         ax.set_title(r)
-        ax.set_xlabel("J3 peak base displacement / baseline's")
-        ax.set_ylabel("J5 peak floor acceleration / baseline's")
+        ax.set_xlabel("J3: peak base displacement / the baseline's")
+        ax.set_ylabel("J5: peak floor acceleration / the baseline's")
         ax.grid(alpha=0.3)
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        for pair in coincident({s: [p] for s, p in points.items()}, (x1 - x0, y1 - y0)):
+            where.setdefault(coincidence_note(*pair), []).append(r)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
-    axes.flat[0].legend(fontsize=7, loc="best")
+    notes = [f"{note} ({'every record' if on == records else ', '.join(on)})" for note, on in where.items()]
+    add_legend_notes(axes.flat[0], notes, fontsize=7, loc="best")
     fig.tight_layout()
+    return fig
+
+
+def pareto_plot(rows: Rows, records: list[str], best: str, baseline: str, path: Path,
+                files: FigureFiles = PNG_ONLY) -> Path:
+    """:func:`pareto_figure` written as ``path`` (PNG, and each of ``files.formats`` beside it); the PNG."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save(pareto_figure(rows, records, best, baseline), path, files)
 
 
 def _table(rows: Rows, title: str) -> list[Block]:
@@ -236,8 +249,10 @@ def _table(rows: Rows, title: str) -> list[Block]:
     return [Block("p", title), Block("table", header=header, rows=body)]
 
 
-def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[str, str], Any]) -> list[Block]:
-    """Write criteria.csv (and the second baseline's), the Pareto figure; the report's benchmark blocks."""
+def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[str, str], Any],
+                      files: FigureFiles = PNG_ONLY) -> list[Block]:
+    """Write criteria.csv (and the second baseline's), the Pareto figure (PNG, and ``files.formats``); the report's
+    benchmark blocks."""
     spec = study.config.get("benchmark") or {}
     baseline, second = spec.get("baseline", "passive-off"), spec.get("second_baseline", "passive-on")
     best = spec.get("best_constant", "best-constant")
@@ -267,11 +282,13 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
                 text += (f" (the baseline {baseline} among them: its values weigh the criteria of this mean; "
                          f"criteria_{second}.csv gives the ratios to {second})" if second else "")
         blocks.append(Block("p", text + "."))
-    fig = pareto_plot(ranked_rows(rows), records, best, baseline, folder / "figures" / "benchmark_pareto_J3_J5.png")
+    fig = pareto_plot(ranked_rows(rows), records, best, baseline, folder / "figures" / "benchmark_pareto_J3_J5.png",
+                      files)
     blocks.append(Block("img", str(fig.relative_to(folder)), items=[
         f"J3 (peak base displacement) against J5 (peak floor acceleration), both over {baseline} (which sits "
-        f"at (1, 1), not drawn); the star is the best constant current ({best}); the grey line joins the "
-        "non-dominated strategies; numerically invalid runs are not drawn"]))
+        f"at (1, 1), not drawn); the hollow star is the best constant current ({best}); the grey line joins the "
+        "non-dominated strategies; the legend names strategies whose points coincide; numerically invalid runs are "
+        "not drawn"]))
     blocks.append(Block("h", "Against the best constant current", level=3))
     blocks.append(Block("p", f"J5 of each strategy over {best}'s on the same record (this ratio does not depend on "
                              "the baseline); a difference within 1 % is a tie, and so is one within the two runs' "

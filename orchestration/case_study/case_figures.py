@@ -1,5 +1,6 @@
 """The case study's figures (``figures/``): the paper's Fig. 15-17, the isolator hysteresis per record,
-the constant-current sweep and the second gain set's tuning front. Each function draws one figure."""
+the constant-current sweep and the second gain set's tuning front. Each function draws one figure; each
+strategy has its own line style and marker, and a legend says where two strategies' curves coincide."""
 
 from __future__ import annotations
 
@@ -14,23 +15,39 @@ import numpy as np
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_metrics import Metrics, Series, current_limit, pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
-from orchestration.figure_axes import few_ticks, plain_log_axis
+from orchestration.figure_axes import (
+    add_legend_notes,
+    coincidence_note,
+    coincident,
+    few_ticks,
+    plain_log_axis,
+    strategy_style,
+)
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles, save_figure
 
 COLORS = defaultdict(lambda: "tab:gray", {
     "passive-off": "0.25", "passive-on": "tab:blue", "best-constant": "tab:green", "sosm": "tab:red",
     "sosm-fig15": "tab:orange", "on-off": "tab:purple", "clipped-optimal": "tab:brown",
     "clipped-optimal-inverse": "tab:pink", "lyapunov": "tab:olive", "frequency": "tab:cyan"})
-STYLES = defaultdict(lambda: "-", {"passive-off": ":", "passive-on": "--", "best-constant": "-."})
+STUDY_DPI = 100
+"""The studies' PNG resolution unless one is asked for (``--dpi``) [dots per inch]."""
 
 
-def _save(fig: Any, path: Path) -> Path:
+def save(fig: Any, path: Path, files: FigureFiles = PNG_ONLY) -> Path:
+    """Write ``fig`` as ``path`` (PNG, and each of ``files.formats`` beside it) and close it; the PNG."""
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    tmp.replace(path)
+    try:
+        save_figure(fig, path, files, STUDY_DPI)
+    finally:
+        plt.close(fig)
     return path
+
+
+def _where(records: dict[str, list[str]], names: list[str]) -> list[str]:
+    """Legend notes: each coincidence with the records (and panel, where only one) it holds on, or "every
+    record"."""
+    return [f"{note} ({'every record' if on == names else ', '.join(on)})" for note, on in records.items()]
 
 
 def named(study: CaseStudyRecord, r: str) -> str:
@@ -73,7 +90,7 @@ def pareto_figure(study: CaseStudyRecord) -> Any:
         best = [k for k, row in enumerate(sosm) if row["lambda"] == chosen["lambda"] and row["rho"] == chosen["rho"]]
         if best:
             ax.plot(*pts[best[0]], marker="*", ms=14, mfc="none", color="k", label="chosen (sosm-fig15)")
-        ax.set(xlabel="mean current [A]", ylabel="peak top-floor acceleration a_3 [m/s²]",
+        ax.set(xlabel="mean current [A]", ylabel="peak top-floor acceleration [m/s²]",
                title=f"{r}, first {window:g} s" if window else r)
         plain_log_axis(ax.yaxis)
         ax.grid(alpha=0.3, which="both")
@@ -107,7 +124,7 @@ def current_figure(study: CaseStudyRecord, series: Series) -> Any:
                     ax.plot(ts["time"], ts["coil.i"], color="0.2", lw=0.5, ls="--")
             ax.axhline(hi, color="0.5", ls="--", lw=0.8)
             ax.axhline(limit, color="0.5", ls=":", lw=0.8)
-            ax.set(ylabel="i [A]", ylim=(-0.1, i_max * 1.08))
+            ax.set(ylabel="current [A]", ylim=(-0.1, i_max * 1.08))
             device = ", dark dashed: the device current" if ts is not None and "coil.i" in ts else ""
             ax.set_title(f"{named(study, r)}: {s} current (dashed {hi:g} A as in the paper, dotted its limit "
                          f"{limit:g} A{device})", fontsize=9)
@@ -124,10 +141,13 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
     records = list(study.records)
     fig, axes = plt.subplots(len(records), 1, figsize=(8, 1.9 * len(records)), squeeze=False)
     for ax, r in zip(axes[:, 0], records, strict=True):
+        drawn = {}
         for s in (UNCONTROLLED, "passive-on", *SOSM_STRATEGIES):
             ts = series.get((r, s))
             if ts is not None and s in study.strategies:
-                ax.plot(ts["time"], ts["building.a_3"], color=COLORS[s], ls="-",
+                drawn[s] = ts["building.a_3"]
+                ax.plot(ts["time"], ts["building.a_3"], color=COLORS[s], **strategy_style(s, study.strategies),
+                        markevery=max(1, len(ts["time"]) // 12), ms=3, mfc="none",
                         lw=0.6 if s in SOSM_STRATEGIES else 0.5, alpha=0.8 if s != "passive-on" else 0.6, label=s)
         ref_ts = series.get((r, UNCONTROLLED))
         if ref_ts is not None and len(ref_ts["time"]) > 1:
@@ -135,12 +155,13 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
             strong = ref_ts["time"][a > 0.05 * a.max()]
             if len(strong):
                 ax.set_xlim(0.0, min(ref_ts["time"][-1], strong[-1] + 5.0))
-        ax.set(ylabel="a_3 [m/s²]")
+        ax.set(ylabel="acceleration [m/s²]")
         ax.set_title(f"{named(study, r)}: top-floor (3rd floor) absolute acceleration, strong-motion window",
                      fontsize=9)
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7, loc="upper right")
+        low, high = ax.get_ylim()
+        add_legend_notes(ax, [coincidence_note(*p) for p in coincident(drawn, high - low)], fontsize=7,
+                         loc="upper right")
     axes[-1, 0].set_xlabel("time [s]")
     fig.tight_layout()
     return fig
@@ -152,24 +173,31 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
 
     records = list(study.records)
     fig, axes = plt.subplots(len(records), 2, figsize=(8, 2.4 * len(records)), squeeze=False)
+    where: dict[str, list[str]] = {}
     for row, r in enumerate(records):
+        drawn: tuple[dict[str, list[float]], dict[str, list[float]]] = ({}, {})
         for s in study.strategies:
             m = metrics.get((r, s))
             if m is None:
                 continue
             nd = len([k for k in m if re.fullmatch(r"drift_\d+_mm", k)])
-            axes[row, 0].plot([m[f"drift_{j}_mm"] for j in range(1, nd + 1)], range(1, nd + 1), marker="o",
-                              color=COLORS[s], ls=STYLES[s], label=s)
-            axes[row, 1].plot([m[f"acc_{j}"] for j in range(nd + 1)], range(nd + 1), marker="o", color=COLORS[s],
-                              ls=STYLES[s], label=s)
+            drawn[0][s] = [m[f"drift_{j}_mm"] for j in range(1, nd + 1)]
+            drawn[1][s] = [m[f"acc_{j}"] for j in range(nd + 1)]
+            style = strategy_style(s, study.strategies) | {"color": COLORS[s], "mfc": "none", "label": s}
+            axes[row, 0].plot(drawn[0][s], range(1, nd + 1), **style)
+            axes[row, 1].plot(drawn[1][s], range(nd + 1), **style)
+        pairs = [coincident(curves, ax.get_xlim()[1] - ax.get_xlim()[0])
+                 for ax, curves in zip(axes[row], drawn, strict=True)]
+        for pair in dict.fromkeys([*pairs[0], *pairs[1]]):
+            panel = "" if pair in pairs[0] and pair in pairs[1] else " drift" if pair in pairs[0] else " acceleration"
+            where.setdefault(coincidence_note(*pair), []).append(named(study, r) + panel)
         n_levels = len(study.records[r].masses_kg)
         axes[row, 0].set(ylabel=f"{named(study, r)}\nstorey", xlabel="peak drift [mm]", yticks=range(1, n_levels))
         axes[row, 1].set(ylabel="level (0 = base)", xlabel="peak abs. acceleration [m/s²]", yticks=range(n_levels))
         for ax in axes[row]:
             ax.grid(alpha=0.3)
             few_ticks(ax.xaxis)
-    if axes[0, 1].get_legend_handles_labels()[0]:
-        axes[0, 1].legend(fontsize=7)
+    add_legend_notes(axes[0, 1], _where(where, [named(study, r) for r in records]), fontsize=7)
     fig.tight_layout()
     return fig
 
@@ -193,11 +221,11 @@ def hysteresis_figure(study: CaseStudyRecord, series: Series, r: str) -> Any:
         for edge, style in ((x_id, "--"), (x_lim, ":")):
             ax.axvline(edge, color="0.5", ls=style, lw=0.8)
             ax.axvline(-edge, color="0.5", ls=style, lw=0.8)
-        ax.set(title=s, xlabel="x_0 [mm]")
+        ax.set(title=s, xlabel="base displacement [mm]")
         ax.grid(alpha=0.3)
     n_iso = study.records[r].n_isolators
     for row in axes:
-        row[0].set_ylabel(f"force of the {n_iso} isolators [N]" if n_iso else "isolator force F [N]")
+        row[0].set_ylabel(f"force of the {n_iso} isolators [N]" if n_iso else "isolator force [N]")
     fig.suptitle(f"{named(study, r)}: isolator hysteresis per strategy "
                  f"(dashed ±{x_id:g} mm identified, dotted ±{x_lim:g} mm limit)",
                  fontsize=9)
@@ -224,8 +252,10 @@ def sweep_figure(study: CaseStudyRecord) -> Any:
     return fig
 
 
-def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series: Series) -> dict[str, Path]:
-    """Every figure into ``folder/figures``; name -> file, in the report's order."""
+def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series: Series,
+                 files: FigureFiles = PNG_ONLY) -> dict[str, Path]:
+    """Every figure into ``folder/figures`` (PNG, and each of ``files.formats`` beside it); name -> PNG, in the
+    report's order."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -241,5 +271,5 @@ def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series:
     for name, figure in draw:  # one figure open at a time
         fig = figure()
         if fig is not None:
-            made[name] = _save(fig, figdir / f"{name}.png")
+            made[name] = save(fig, figdir / f"{name}.png", files)
     return made

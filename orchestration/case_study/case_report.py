@@ -33,13 +33,15 @@ from orchestration.case_study.case_metrics import (
 from orchestration.case_study.case_records import CaseStudyRecord, RecordInfo
 from orchestration.case_study.case_rendering import TIE, Block, compare, fmt, pct, to_html, to_markdown
 from orchestration.case_study.claims import PINNED_SHARE, check_claims
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 from orchestration.master.runfolder import write_json, write_text
 
 CAPTIONS = {"fig15_current": "SOSM current per record, one column per gain set (cf. paper Fig. 15).",
             "pareto": "Peak top-floor acceleration against mean current over the sosm-fig15 tuning's "
                       "evaluations (colour: share of time at the limit), with the constant currents.",
             "fig16_top_acceleration": "Top-floor absolute acceleration, passive vs SOSM (cf. Fig. 16).",
-            "fig17_profiles": "Peak drift per storey and peak acceleration per level (cf. Fig. 17).",
+            "fig17_profiles": "Peak drift per storey and peak acceleration per level (cf. Fig. 17); a line style and "
+                              "marker per strategy, and the legend names strategies whose profiles coincide.",
             "sweep": "Objective J against the constant current."}
 
 
@@ -445,16 +447,17 @@ def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures
             *figure_blocks(folder, figures), *every_claim]
 
 
-def write_outputs(folder: Path, study: CaseStudyRecord) -> CaseStudyRecord:
-    """(Re)write peaks.csv, indices.csv, sweep.csv, reference.csv, figures, report.md/html and study.json."""
+def write_outputs(folder: Path, study: CaseStudyRecord, files: FigureFiles = PNG_ONLY) -> CaseStudyRecord:
+    """(Re)write peaks.csv, indices.csv, sweep.csv, reference.csv, figures (PNG, and each of ``files.formats``),
+    report.md/html (which embed the PNGs) and study.json."""
     metrics, series = load_metrics(folder, study)
     write_tables(folder, study, metrics)
-    figures = make_figures(folder, study, metrics, series)
+    figures = make_figures(folder, study, metrics, series, files)
     blocks = build_report(folder, study, metrics, figures, series)
     if study.config.get("benchmark") is not None:  # a controller benchmark: criteria.csv, its sections after the header
         from orchestration.case_study.benchmark_report import benchmark_outputs
 
-        blocks = [*blocks[:2], *benchmark_outputs(folder, study, series), *blocks[2:]]
+        blocks = [*blocks[:2], *benchmark_outputs(folder, study, series, files), *blocks[2:]]
     write_text(folder / "report.md", to_markdown(blocks))
     write_text(folder / "report.html", to_html(blocks, folder))
     study.metrics = {f"{r}/{s}": m for (r, s), m in metrics.items()}

@@ -42,6 +42,7 @@ from orchestration.building_studies.run_settings import run_overrides
 from orchestration.building_studies.study_file import key_files
 from orchestration.case_study import case_jobs
 from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.case_study.case_figures import STUDY_DPI
 from orchestration.case_study.case_jobs import (
     BENCHMARK_OUTPUTS_OVERRIDE,
     OUTPUTS_OVERRIDE,
@@ -64,7 +65,9 @@ from orchestration.case_study.case_records import (
 from orchestration.case_study.case_report import read_study, write_outputs
 from orchestration.case_study.robustness_plan import VariantPlanner, variants
 from orchestration.engine_hooks import require_kind
+from orchestration.figure_options import add_figure_arguments, figure_files
 from orchestration.master.errors import ScenarioError
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
 from orchestration.provenance import provenance
 
@@ -87,6 +90,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              "fixed: each criterion's change goes into criteria.csv and the report, a verdict closer "
                              "than it is a tie, a run whose peaks move more than 1 %% is not converged (invalid)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_figure_arguments(parser, default_note=str(STUDY_DPI))
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate the report of a study folder")
     parser.add_argument("--resume", type=Path, metavar="DIR",
                         help="finish an interrupted study folder: compute only the jobs whose results are missing")
@@ -100,6 +104,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error("--base-sensitivity needs a study file")
     if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
         parser.error("give a study file, or --report DIR, or --resume DIR")
+    args.figure_files = figure_files(args)
     return args
 
 
@@ -381,6 +386,7 @@ class RunOptions:
     progress: bool = True
     verify: bool = False  # compute the Radau references the cache lacks
     verify_step: bool = False  # every co-simulation again at half the plant's step
+    figures: FigureFiles = PNG_ONLY  # the report's figures: PNG resolution, vector formats beside
 
 
 def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: BatchPool, options: RunOptions,
@@ -418,7 +424,7 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     record.interrupted = interrupted
     write_json(folder / "study.json", record.to_json())
     bar.close()
-    write_outputs(folder, record)
+    write_outputs(folder, record, options.figures)
     failed = [e.key for e in [*record.runs, *record.variant_runs, *record.half_step_runs] if not e.ok]
     failed += [k for k, v in {**record.sweep, **record.reference}.items() if not v.ok]
     print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
@@ -469,7 +475,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: cannot read {args.report / 'study.json'}: {type(exc).__name__}: {exc}", file=sys.stderr)
             return 2
         try:
-            write_outputs(args.report, data)
+            write_outputs(args.report, data, args.figure_files)
         except OSError as exc:
             print(f"error: cannot write the report into {args.report}: {exc.strerror or exc}"
                   f"{f' ({exc.filename})' if exc.filename else ''}", file=sys.stderr)
@@ -517,7 +523,8 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
     try:
         options = RunOptions([sys.executable, *sys.argv], progress=not args.quiet, verify=args.verify,
-                             verify_step=args.verify_step or bool(resumed and resumed.half_step_runs))
+                             verify_step=args.verify_step or bool(resumed and resumed.half_step_runs),
+                             figures=args.figure_files)
         return run_study(study, folder, prepared, pool, options, resumed)
     finally:
         pool.close()

@@ -4,7 +4,10 @@
   isolator displacement [mm] against the intensity, the median over components in bold,
   the identified 8 mm and the 15 mm device limit marked (failed runs left out, as in the stripes).
 * ``figures/fragility.png``: one panel per limit state, a curve per strategy (controller) on
-  each: the fitted lognormal, its confidence band, and the observed fraction at each level.
+  each: the fitted lognormal, its confidence band, and the observed fraction at each level; each strategy
+  its own line style and marker, and the legend says where two strategies' fitted curves coincide.
+
+Each is a PNG at :data:`IDA_DPI` (or ``--dpi``), with the vector formats asked for beside it (``--format``).
 """
 
 from __future__ import annotations
@@ -15,15 +18,26 @@ from typing import Any
 
 import numpy as np
 
-from orchestration.figure_axes import plain_log_axis
+from orchestration.figure_axes import add_legend_notes, coincidence_note, coincident, plain_log_axis, strategy_style
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import QUANTITIES, IdaSpec
 from orchestration.ida_study.ida_metrics import ENDED
 from orchestration.ida_study.ida_records import IdaInfo
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles, save_figure
 
 COLORS = ("0.25", "tab:blue", "tab:red", "tab:purple", "tab:green", "tab:orange", "tab:brown", "tab:cyan")
-STYLES = {"passive-off": ":", "passive-on": "--"}
 MAX_COLUMNS = 4  # panels per row of the IDA curves
+IDA_DPI = 110
+"""The IDA figures' PNG resolution unless one is asked for (``--dpi``) [dots per inch]."""
+
+
+def _save(fig: Any, path: Path, files: FigureFiles) -> None:
+    import matplotlib.pyplot as plt
+
+    try:
+        save_figure(fig, path, files, IDA_DPI, tight=False)
+    finally:
+        plt.close(fig)
 
 
 
@@ -42,7 +56,8 @@ def threshold_text(quantity: str, threshold: float) -> str:
     return f"{1e3 * threshold:g} mm" if unit == "m" else f"{threshold:g} {unit}"
 
 
-def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies: list[str]) -> None:
+def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies: list[str],
+               files: FigureFiles = PNG_ONLY) -> None:
     """IDA curves, one panel per strategy."""
     import matplotlib
 
@@ -78,11 +93,11 @@ def ida_figure(path: Path, info: IdaInfo, rows: list[dict[str, Any]], strategies
     axes[0][0].legend(fontsize=7, loc="lower right")
     fig.suptitle(f"{info.name}: IDA curves ({len({r['record_id'] for r in rows})} components)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, files)
 
 
-def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, dict[str, Fit]]) -> None:
+def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, dict[str, Fit]],
+                     files: FigureFiles = PNG_ONLY) -> None:
     """Fragility curves per limit state, strategies side by side."""
     import matplotlib
 
@@ -99,27 +114,30 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
         ax.set_visible(False)
     for ax, name in zip(axes.flat, names, strict=False):
         ls = spec.limit_states[name]
+        strategies = list(fits[name])
+        curves = {}
         for k, (s, fit) in enumerate(fits[name].items()):
             color = COLORS[k % len(COLORS)]
+            style = strategy_style(s, strategies)
             frac = [(st.level, st.k / st.n) for st in fit.stripes if st.n]
-            ax.plot([f[0] for f in frac], [f[1] for f in frac], "o", color=color, ms=4, alpha=0.8)
+            ax.plot([f[0] for f in frac], [f[1] for f in frac], ls="none", marker=style["marker"], color=color,
+                    ms=4, alpha=0.8, mfc="none")
             if fit.ok:
                 lo, hi = fit.band(x)
                 ax.fill_between(x, lo, hi, color=color, alpha=0.12, lw=0)
-                ax.plot(x, fit.probability(x), color=color, ls=STYLES.get(s, ("-", "-.")[k // len(COLORS) % 2]),
-                        label=f"{s}: θ={fit.theta:.3g} g, β={fit.beta:.2f}")
+                curves[s] = fit.probability(x)
+                ax.plot(x, curves[s], color=color, ls=style["ls"], label=f"{s}: θ={fit.theta:.3g} g, β={fit.beta:.2f}")
             else:
-                ax.plot([], [], "o", color=color, label=f"{s}: {fit.kind}")
+                ax.plot([], [], ls="none", marker=style["marker"], color=color, label=f"{s}: {fit.kind}")
         plain_log_axis(ax.xaxis)
         ax.set_ylim(-0.02, 1.02)
         ax.set_title(f"{ls.label or name}\n({ls.quantity.replace('_', ' ')} > "
                      f"{threshold_text(ls.quantity, ls.threshold)})", fontsize=9)
         ax.set_xlabel(im_label(info))
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7, loc="upper left")
+        add_legend_notes(ax, [coincidence_note(*p) for p in coincident(curves, 1.04)], fontsize=7, loc="upper left")
     for row in axes:
-        row[0].set_ylabel("P(exceed)")
+        row[0].set_ylabel("probability of exceedance")
     fig.suptitle(f"{info.name}: fragility, lognormal MLE with {100 * spec.confidence:g} % band", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, files)

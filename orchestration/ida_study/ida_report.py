@@ -23,22 +23,25 @@ from orchestration.ida_study.ida_metrics import (
 )
 from orchestration.ida_study.ida_records import IdaInfo
 from orchestration.ida_study.ida_rendering import report_html, report_markdown
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 from orchestration.master.runfolder import write_text
 
 
 def write_report(folder: Path, info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]],
-                 fits: dict[str, dict[str, Fit]]) -> None:
-    """Figures, report.md and report.html of a study folder."""
+                 fits: dict[str, dict[str, Fit]], files: FigureFiles = PNG_ONLY) -> None:
+    """Figures (PNG, and each of ``files.formats``), report.md and report.html (which embed the PNGs) of a study
+    folder."""
     (folder / "figures").mkdir(exist_ok=True)
-    ida_figure(folder / "figures" / "ida_curves.png", info, rows, list(info.strategies))
-    fragility_figure(folder / "figures" / "fragility.png", info, spec, fits)
+    ida_figure(folder / "figures" / "ida_curves.png", info, rows, list(info.strategies), files)
+    fragility_figure(folder / "figures" / "fragility.png", info, spec, fits, files)
     markdown = report_markdown(info, spec, rows, fits)
     write_text(folder / "report.md", markdown)
     write_text(folder / "report.html", report_html(markdown, folder))
 
 
-def write_outputs(folder: Path, info: IdaInfo, rows: list[dict[str, Any]]) -> dict[str, dict[str, Fit]]:
-    """Tables, fragility, figures and report of a study folder from its data."""
+def write_outputs(folder: Path, info: IdaInfo, rows: list[dict[str, Any]], files: FigureFiles = PNG_ONLY
+                  ) -> dict[str, dict[str, Fit]]:
+    """Tables, fragility, figures (as ``files`` says) and report of a study folder from its data."""
     spec = IdaSpec.model_validate(info.config)
     write_tables(folder, rows)
     fits = fragilities(rows, spec)
@@ -47,5 +50,5 @@ def write_outputs(folder: Path, info: IdaInfo, rows: list[dict[str, Any]]) -> di
     margins = collapse_margins(fits, spec, rows)
     if margins:
         write_text(folder / "collapse.csv", table_csv(tuple(margins[0]), margins))
-    write_report(folder, info, spec, rows, fits)
+    write_report(folder, info, spec, rows, fits, files)
     return fits

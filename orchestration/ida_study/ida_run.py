@@ -42,8 +42,10 @@ from orchestration.batch.portable import file_bytes, job_key, plan_content
 from orchestration.batch.store import ResultStore, StoreError, check_folder, open_for_resume
 from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.building_studies.study_file import key_files
+from orchestration.figure_options import add_figure_arguments, figure_files
 from orchestration.ida_study import ida_jobs
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda, load_ida
+from orchestration.ida_study.ida_figures import IDA_DPI
 from orchestration.ida_study.ida_jobs import IdaInputs, ida_job
 from orchestration.ida_study.ida_metrics import ENDED, read_rows, result_rows, run_label
 from orchestration.ida_study.ida_plan import PreparedIda, RecordComponent, prepare_ida
@@ -51,6 +53,7 @@ from orchestration.ida_study.ida_records import ComponentInfo, IdaInfo, RunOutco
 from orchestration.ida_study.ida_report import write_outputs
 from orchestration.ida_study.intensity import MEASURES
 from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 from orchestration.master.runfolder import RunFolderExists, new_run_folder, write_json
 from orchestration.provenance import provenance
 
@@ -147,8 +150,8 @@ def compute(prepared: PreparedIda, pool: BatchPool, pending: list[PendingRun], l
 
 
 def run_ida(prepared: PreparedIda, folder: Path, pool: BatchPool, progress: bool, command: list[str],
-            resumed: IdaInfo | None = None) -> int:
-    """Run every run of a prepared study into ``folder``; returns the exit code."""
+            resumed: IdaInfo | None = None, files: FigureFiles = PNG_ONLY) -> int:
+    """Run every run of a prepared study into ``folder`` (its figures as ``files`` says); returns the exit code."""
     spec = prepared.study.spec
     (folder / "records").mkdir(exist_ok=True)
     for c in prepared.components:
@@ -171,7 +174,7 @@ def run_ida(prepared: PreparedIda, folder: Path, pool: BatchPool, progress: bool
     info.runs_computed = sum(1 for run in pending if labels[run.key] in results)
     write_json(folder / "ida.json", info.to_json())
     rows = result_rows(info.components, info.measure, results, list(spec.intensity.levels), list(prepared.strategies))
-    write_outputs(folder, info, rows)
+    write_outputs(folder, info, rows, files)
     bad = [r for r in rows if r["status"] not in ENDED]
     print(f"IDA {'interrupted' if interrupted else 'done'}: {folder} ({len(rows)} runs, {len(bad)} not ended: "
           f"failed, lost or not run; {info.wall_time_s:.0f} s)")
@@ -192,13 +195,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--resume", type=Path, metavar="DIR", help="finish a study folder: compute what is missing")
     parser.add_argument("--report", type=Path, metavar="DIR", help="regenerate tables, figures and report of DIR")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_figure_arguments(parser, default_note=str(IDA_DPI))
     args = parser.parse_args(argv)
     if sum(x is not None for x in (args.study, args.report, args.resume)) != 1:
         parser.error("give a study file, or --resume DIR, or --report DIR")
+    args.figure_files = figure_files(args)
     return args
 
 
-def regenerate(folder: Path) -> int:
+def regenerate(folder: Path, files: FigureFiles = PNG_ONLY) -> int:
     """``--report DIR``: tables, figures and report of a study folder again, from its data; the exit code."""
     try:
         info = IdaInfo.from_json(json.loads((folder / "ida.json").read_text()))
@@ -207,7 +212,7 @@ def regenerate(folder: Path) -> int:
         print(f"error: cannot read the study folder {folder}: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     try:
-        write_outputs(folder, info, rows)
+        write_outputs(folder, info, rows, files)
     except OSError as exc:
         print(f"error: cannot write the report into {folder}: {exc.strerror or exc}"
               f"{f' ({exc.filename})' if exc.filename else ''}", file=sys.stderr)
@@ -242,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     """CLI entry point; returns the exit code."""
     args = parse_args(argv)
     if args.report is not None:
-        return regenerate(args.report)
+        return regenerate(args.report, args.figure_files)
     prepared = claim = None
     try:
         prepared, resumed = load(args)
@@ -274,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
 
     # SIGTERM raises KeyboardInterrupt here already (mre_common.guard.guarded): handled as Ctrl-C, report written
     try:
-        return run_ida(prepared, folder, pool, not args.quiet, [sys.executable, *sys.argv], resumed)
+        return run_ida(prepared, folder, pool, not args.quiet, [sys.executable, *sys.argv], resumed,
+                       args.figure_files)
     finally:
         pool.close()
         prepared.cleanup()

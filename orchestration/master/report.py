@@ -22,14 +22,15 @@ from typing import Any
 import numpy as np
 
 from orchestration.master.child_process import Child, exit_text, fork_safe, read_all, spare_processes
+from orchestration.master.figure_files import PNG_ONLY, RUN_DPI, FigureFiles, save_figure
 from orchestration.master.recorder import Recorder
 from orchestration.master.scenario import ReportSpec
 from orchestration.master.summary import non_finite, peak, sample_interval, summarize
 from orchestration.master.yaml_source import DataFile
 
-__all__ = ["PLACEHOLDER", "Figures", "PlotFailed", "PlotProcess", "ReportHook", "RunDescription", "caption",
-           "decimate", "non_finite", "peak", "plot", "prepare_plotting", "report_summary", "sample_interval",
-           "summarize"]
+__all__ = ["PLACEHOLDER", "RUN_DPI", "FigureFiles", "Figures", "PlotFailed", "PlotProcess", "ReportHook",
+           "RunDescription", "caption", "decimate", "non_finite", "peak", "plot", "prepare_plotting", "report_summary",
+           "sample_interval", "summarize"]
 # non_finite, peak, report_summary, sample_interval, summarize: the summary's part (orchestration.master.summary),
 # importable from here as before
 
@@ -117,13 +118,16 @@ def decimate(t: np.ndarray, y: np.ndarray, max_points: int = _MAX_POINTS) -> tup
 
 
 class Figures:
-    """Figures of one run, saved as PNG into its folder: titled with the run's caption, lines decimated.
+    """Figures of one run, saved into its folder: titled with the run's caption, lines decimated.
+
+    Each is a PNG at ``files.dpi`` (default :data:`RUN_DPI`), with ``files.formats`` (SVG, PDF) beside it.
 
     ``time_figure`` draws time histories; with a ``window`` (a time span [s] the application
     picks) the window is drawn large and the whole run below it, the window shaded.
     """
 
-    def __init__(self, folder: Path, head: str, share: tuple[int, int] = (0, 1)) -> None:
+    def __init__(self, folder: Path, head: str, share: tuple[int, int] = (0, 1),
+                 files: FigureFiles = PNG_ONLY) -> None:
         import matplotlib
 
         matplotlib.use("Agg")
@@ -134,6 +138,7 @@ class Figures:
         self.head = head  # the caption, first line of every title
         self.made: list[Path] = []
         self.share = share  # (k, n): this process writes the k-th, (k+n)-th, ... figure (see PlotProcess)
+        self.files = files
         self._turns = 0
 
     def _my_turn(self) -> bool:
@@ -144,7 +149,8 @@ class Figures:
         return turn % n == k
 
     def save(self, fig: Any, file: str) -> None:
-        """Write ``fig`` as ``file`` in the run folder (through a temporary name) and close it.
+        """Write ``fig`` as ``file`` (a ``.png``) in the run folder, and in each vector format asked for (each
+        through a temporary name), and close it.
 
         With a ``share`` (k, n), only every n-th figure from the k-th is written (other
         processes write the others); the rest are closed unrendered.
@@ -153,12 +159,10 @@ class Figures:
         if not (self._my_turn() if mine is None else mine):
             self.plt.close(fig)
             return
-        path = self.folder / file
-        tmp = self.folder / f".{file}.tmp.png"
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        self.plt.close(fig)
-        tmp.replace(path)
-        self.made.append(path)
+        try:
+            save_figure(fig, self.folder / file, self.files, RUN_DPI, made=self.made)
+        finally:
+            self.plt.close(fig)
 
     def time_figure(self, t: np.ndarray, title: str, ylabel: str,
                     lines: list[tuple[np.ndarray, str, dict[str, Any]]],
@@ -235,12 +239,12 @@ def report_summary(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, run
 
 
 def plot(rec: Recorder, spec: ReportSpec, hook: ReportHook | None, folder: Path, name: str,
-         run: RunDescription, share: tuple[int, int] = (0, 1)) -> list[Path]:
-    """The application's figures of a run (none without a hook that draws): the PNG files written (with a
-    ``share`` (k, n), those of the k-th of n processes drawing them: :class:`Figures`)."""
+         run: RunDescription, share: tuple[int, int] = (0, 1), files: FigureFiles = PNG_ONLY) -> list[Path]:
+    """The application's figures of a run (none without a hook that draws): the files written, PNG and the
+    ``files.formats`` (with a ``share`` (k, n), those of the k-th of n processes drawing them: :class:`Figures`)."""
     if hook is None or hook.plot is None:
         return []
-    figures = Figures(folder, caption(spec, run, name), share)
+    figures = Figures(folder, caption(spec, run, name), share, files)
     hook.plot(spec, rec, run, figures)
     return figures.made
 

@@ -20,6 +20,7 @@ from typing import Any
 from mre_common.hashing import file_sha256
 from orchestration.master.errors import SimulationError
 from orchestration.master.execution import ExecutionResult, RunControls, StopRequest, execute
+from orchestration.master.figure_files import FigureFiles
 from orchestration.master.fmi_status import UNIT_LOGGER, LogRecord
 from orchestration.master.monitor import Monitor
 from orchestration.master.recorder import CsvProcess, Recorder, RowStorage, column_kind, write_results
@@ -82,10 +83,11 @@ def describe_run(plan: SystemPlan) -> RunDescription:
     return RunDescription(values, names, dict(plan.report.labels), held)
 
 
-def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: RunDescription) -> None:
+def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: RunDescription,
+                 files: FigureFiles) -> None:
     """The figures drawn in this process; a failure costs the figures only, said as a plot process says it."""
     try:
-        plot(recorder, plan.report, plan.report_hook, folder, plan.loaded.scenario.name, described)
+        plot(recorder, plan.report, plan.report_hook, folder, plan.loaded.scenario.name, described, files=files)
     except OSError:
         raise
     except Exception as exc:  # a bug in the application's figures: the run keeps its other results
@@ -93,8 +95,8 @@ def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: 
         raise PlotFailed(f"the figures could not be drawn ({last})") from exc
 
 
-def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription,
-                  kinds: list[str]) -> tuple[RowStorage | None, PlotProcess | None]:
+def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription, kinds: list[str],
+                  files: FigureFiles) -> tuple[RowStorage | None, PlotProcess | None]:
     """Row storage shared with a forked process that draws the figures when the run ends (:class:`PlotProcess`):
     it imports matplotlib while the units step and draws once they are done (while the summary is computed and
     the CSV process writes its last rows). ``(None, None)``
@@ -106,7 +108,7 @@ def _plot_process(plan: SystemPlan, folder: Path, described: RunDescription,
 
     def draw(rows: int, share: tuple[int, int]) -> list[Path]:
         return plot(Recorder.view(plan.recorded, kinds, storage, rows), plan.report, hook, folder, sc.name, described,
-                    share)
+                    share, files)
 
     return storage, PlotProcess.start(draw)
 
@@ -153,17 +155,18 @@ class _PlanRun:
     """One run of a plan, in stages: :meth:`__init__` claims the folder and forks the writers, :meth:`simulate`
     steps the units, :meth:`write` writes the results, the manifest and the summary (see :func:`run_plan`)."""
 
-    def __init__(self, plan: SystemPlan, out: Path | None, plots: bool) -> None:
+    def __init__(self, plan: SystemPlan, out: Path | None, plots: bool, files: FigureFiles) -> None:
         self.plan = plan
         self.sc = sc = plan.loaded.scenario
         self.plots = plots
+        self.files = files
         self.folder = new_run_folder(Path(sc.results.dir), sc.name, out)
         self.described = describe_run(plan)
         self.kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
         self.output = sc.simulation.output_interval, sc.simulation.output_format
         self.rows = sc.simulation.n_steps + 1
         # forked before any thread
-        self.storage, self.plotter = _plot_process(plan, self.folder, self.described, self.kinds) if plots \
+        self.storage, self.plotter = _plot_process(plan, self.folder, self.described, self.kinds, files) if plots \
             else (None, None)
         self.csv_process = self._start_csv_process()
         self.log = _UnitMessages(plan.descriptions)
@@ -239,7 +242,7 @@ class _PlanRun:
         if self.csv_process is None:
             self._save(f"timeseries.{output[1]}", lambda: write_results(folder, recorder, *output))
         if self.plots and plotter is None and recorder.count > 1:
-            self._save("plots (*.png)", lambda: _plot_inline(recorder, self.plan, folder, self.described))
+            self._save("plots (*.png)", lambda: _plot_inline(recorder, self.plan, folder, self.described, self.files))
 
     def _summary(self, result: ExecutionResult, recorder: Recorder, run: str | None) -> dict[str, Any]:
         plan, sc, output = self.plan, self.sc, self.output
@@ -326,8 +329,12 @@ def run_plan(
     plots: bool = True,
     progress: bool = False,
     stop: StopRequest | None = None,
+    figure_files: FigureFiles | None = None,
 ) -> RunOutcome:
     """Execute a checked plan and write its run folder (partial results if it fails or is stopped).
+
+    ``figure_files`` says how the figures are written (PNG resolution, SVG or PDF beside it; default: PNG at
+    :data:`~orchestration.master.report.RUN_DPI`); a bad value is a ``ValueError`` before anything is written.
 
     The units' messages go to the ``mre_cosim.units`` logger (:data:`~orchestration.master.fmi_status.UNIT_LOGGER`)
     as ``[unit] status: message``: a unit's first :data:`WARNINGS_SHOWN` warnings at WARNING, later
@@ -335,5 +342,9 @@ def run_plan(
     ``fmi_status`` attributes. Nothing is printed unless the caller attaches a handler (the
     command-line tools do). ``progress`` draws a progress bar on stderr.
     """
-    run = _PlanRun(plan, out, plots)  # the run folder claimed, the CSV and figure processes forked
+    files = figure_files or FigureFiles()
+    problem = files.problem()
+    if problem:
+        raise ValueError(f"figure_files: {problem}")
+    run = _PlanRun(plan, out, plots, files)  # the run folder claimed, the CSV and figure processes forked
     return run.write(run.simulate(progress, stop))

@@ -1,0 +1,116 @@
+"""The studies' figures for a paper: a line style and marker per strategy, a legend note where two strategies'
+curves coincide (and none where they differ), words on the axes, PNG at a chosen dpi with SVG or PDF beside."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import matplotlib
+import pytest
+from PIL import Image
+
+from orchestration.case_study.benchmark_report import pareto_figure, pareto_plot
+from orchestration.case_study.case_figures import profiles_figure, save
+from orchestration.figure_axes import STRATEGY_STYLES, coincident, strategy_style
+from orchestration.ida_study.ida_figures import ida_figure
+from orchestration.master.figure_files import FigureFiles
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+STRATEGIES = ["passive-off", "passive-on", "best-constant", "sosm"]
+NOTE = "passive-on coincides with best-constant"
+
+
+def legend_texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+
+
+def study(records=("elcentro", "kobe")) -> SimpleNamespace:
+    return SimpleNamespace(strategies=STRATEGIES, records={r: SimpleNamespace(scale=0.5, masses_kg=[1.0] * 4)
+                                                           for r in records})
+
+
+def metrics(best_offset: float) -> dict:
+    """Peaks per (record, strategy); best-constant is passive-on plus ``best_offset`` (mm and m/s²)."""
+    out = {}
+    for r, base in (("elcentro", 1.0), ("kobe", 2.0)):
+        for k, s in enumerate(STRATEGIES):
+            shift = best_offset if s == "best-constant" else 0.0
+            value = base + (0.6 if s in ("passive-on", "best-constant") else 0.3 * k)
+            out[(r, s)] = {**{f"drift_{j}_mm": value * j + shift for j in (1, 2, 3)},
+                           **{f"acc_{j}": value + 0.1 * j + shift for j in range(4)}}
+    return out
+
+
+def test_every_strategy_has_its_own_line_style_and_marker():
+    pairs = [(str(ls), m) for ls, m in STRATEGY_STYLES.values()]
+    assert len(set(pairs)) == len(pairs) and len({m for _, m in pairs}) == len(pairs)
+    order = ["mine", "yours", *STRATEGY_STYLES]
+    assert strategy_style("mine", order) != strategy_style("yours", order)
+
+
+def test_curves_coincide_within_half_a_percent_of_the_axis_span():
+    assert coincident({"a": [0.0, 1.0], "b": [0.004, 1.0]}, 1.0) == [("a", "b")]
+    assert coincident({"a": [0.0, 1.0], "b": [0.006, 1.0]}, 1.0) == []
+    assert coincident({"a": [[1.0, 1.0]], "b": [[1.0, 1.4]]}, (1.0, 100.0)) == [("a", "b")]  # a span per column
+    assert coincident({"a": [0.0, 1.0], "b": [0.0, 1.0, 2.0]}, 1.0) == []  # other shapes: not compared
+
+
+def test_fig17_notes_coinciding_strategies_and_only_those():
+    fig = profiles_figure(study(), metrics(0.0))
+    texts = legend_texts(fig)
+    assert f"{NOTE} (every record)" in texts
+    assert set(STRATEGIES) <= set(texts)
+    assert [t for t in texts if "coincides" in t] == [f"{NOTE} (every record)"]
+    lines = {line.get_label(): (str(line.get_linestyle()), line.get_marker()) for line in fig.axes[0].get_lines()}
+    assert len(set(lines.values())) == len(STRATEGIES)  # each strategy its own line style and marker
+    assert fig.axes[0].get_xlabel() == "peak drift [mm]"
+    plt.close(fig)
+    fig = profiles_figure(study(), metrics(0.5))  # 0.5 mm apart: several % of the axis
+    assert not [t for t in legend_texts(fig) if "coincides" in t]
+    plt.close(fig)
+
+
+def pareto_rows(best_j5: float) -> list[dict]:
+    rows = []
+    for r in ("elcentro", "kobe"):
+        rows += [{"record": r, "strategy": "passive-off", "J3": 1.0, "J5": 1.0},
+                 {"record": r, "strategy": "passive-on", "J3": 0.5, "J5": 0.8},
+                 {"record": r, "strategy": "best-constant", "J3": 0.5, "J5": best_j5 if r == "kobe" else 0.8},
+                 {"record": r, "strategy": "sosm", "J3": 0.7, "J5": 0.6}]
+    return rows
+
+
+def test_pareto_plot_notes_coinciding_points_and_only_those():
+    fig = pareto_figure(pareto_rows(0.8), ["elcentro", "kobe"], "best-constant", "passive-off")
+    assert f"{NOTE} (every record)" in legend_texts(fig)
+    plt.close(fig)
+    fig = pareto_figure(pareto_rows(0.7), ["elcentro", "kobe"], "best-constant", "passive-off")
+    assert [t for t in legend_texts(fig) if "coincides" in t] == [f"{NOTE} (elcentro)"]
+    plt.close(fig)
+    fig = pareto_figure(pareto_rows(0.5), ["kobe"], "best-constant", "passive-off")
+    assert not [t for t in legend_texts(fig) if "coincides" in t]
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("dpi, formats", [(None, ()), (300, ("svg",)), (72, ("svg", "pdf"))])
+def test_study_and_ida_figures_at_a_chosen_dpi_with_vector_files(tmp_path, dpi, formats):
+    files = FigureFiles(dpi, formats)
+    save(profiles_figure(study(), metrics(0.0)), tmp_path / "fig17_profiles.png", files)
+    pareto_plot(pareto_rows(0.8), ["elcentro", "kobe"], "best-constant", "passive-off",
+                tmp_path / "benchmark_pareto_J3_J5.png", files)
+    rows = [{"intensity": level, "strategy": s, "status": "ok", "record_id": c, "x_base_mm": level * 100 + k}
+            for level in (0.05, 0.1) for k, s in enumerate(STRATEGIES) for c in ("a", "b")]
+    ida_figure(tmp_path / "ida_curves.png", SimpleNamespace(name="tiny", measure="pga"), rows, STRATEGIES, files)
+    for name, default in (("fig17_profiles", 100), ("benchmark_pareto_J3_J5", 100), ("ida_curves", 110)):
+        want = dpi or default
+        assert Image.open(tmp_path / f"{name}.png").info["dpi"] == pytest.approx((want, want), abs=0.05)
+        assert (tmp_path / f"{name}.svg").is_file() == ("svg" in formats)
+        assert (tmp_path / f"{name}.pdf").is_file() == ("pdf" in formats)
+        if "svg" in formats:
+            assert ET.parse(tmp_path / f"{name}.svg").getroot().tag == "{http://www.w3.org/2000/svg}svg"
+        if "pdf" in formats:
+            assert (tmp_path / f"{name}.pdf").read_bytes()[:4] == b"%PDF"
+    assert not list(tmp_path.glob(".*.tmp.*"))
