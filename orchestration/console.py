@@ -24,7 +24,8 @@ TOOLS: dict[str, tuple[str, str]] = {
     "ida": ("orchestration.ida", "incremental dynamic analysis and fragility (orchestration/ida.py)"),
     "identify": ("orchestration.identify", "identify the isolator models from shake-table data "
                                            "(orchestration/identify.py)"),
-    "tune": ("orchestration.tune", "tune the SOSM gains (orchestration/tune.py)"),
+    "tune": ("orchestration.tune", "tune the SOSM gains, or the strategies of a study's strategy_tuning "
+                                   "(orchestration/tune.py)"),
     "compare": ("orchestration.compare", "compare run folders: peaks and overlays of their report roles "
                                          "(orchestration/compare.py)"),
     "verdict": ("orchestration.verdict", "compare an IDA study's strategies: medians with intervals, paired "

@@ -1,7 +1,9 @@
 """Tune the SOSM gains of a study: ``python orchestration/tune.py scenarios/case_study.yaml --force``.
 
 Writes the study's gains file (``scenarios/sosm_gains.yaml``); see
-:mod:`orchestration.case_study.tuning`. Exit codes: 0 written; 1 no finite objective (nothing
+:mod:`orchestration.case_study.tuning`. A study file with a ``strategy_tuning:`` section instead tunes the
+strategies it lists alike and writes their tuned entries as a strategy file
+(:mod:`orchestration.case_study.strategy_tuner`). Exit codes: 0 written; 1 no finite objective (nothing
 written); 2 configuration error or the
 gains file exists without ``--force`` (nothing written); 3 internal error (a bug; the
 traceback is in the log file named); 130 interrupted (nothing written).
@@ -28,9 +30,11 @@ EPILOG = ("exit codes: 0 gains file written; 1 the tuning found no finite object
 
 
 def _tune(argv: list[str] | None) -> int:
+    from orchestration.case_study.strategy_tuner import declares_tuning
+    from orchestration.case_study.strategy_tuner import main as strategies_main
     from orchestration.case_study.tuning import main as tune_main
 
-    return with_epilog(tune_main, argv, EPILOG)
+    return with_epilog(strategies_main if declares_tuning(argv) else tune_main, argv, EPILOG)
 
 
 def _errors() -> tuple[type[BaseException], ...]:

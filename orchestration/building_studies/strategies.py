@@ -18,6 +18,11 @@ a label. The built-in ones:
 | ``lyapunov`` | ``LyapunovCurrentController`` (after Jansen & Dyke 2000) |
 | ``frequency`` | ``FrequencyCurrentController`` (after Gu et al. 2015) |
 
+An entry may declare ``tunable:``, FMU parameter -> range (``{low, high, scale: log|linear}``), the space the
+strategy tuner (:mod:`orchestration.case_study.strategy_tuner`) searches; a range that is empty, inverted, not
+finite, or log through zero is refused when the file is read, a parameter the FMU lacks by :func:`tunable_problems`.
+A tuned entry (written by that tuner) says what it was tuned on under ``tuned:``.
+
 Problems (unknown strategy, missing FMU, a connection to a variable a unit lacks) are
 ScenarioErrors naming the file, line and key of the strategy entry; :func:`check_strategy`
 runs the engine's own checks (:func:`orchestration.engine_hooks.resolve_scenario`) on the
@@ -34,13 +39,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from orchestration.building_report import REPORT
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import resolve_scenario
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validate_scenario, validation_problems
+from orchestration.master.unit import UnitDescription
 from orchestration.master.unit_check import warn_once
 from orchestration.master.yaml_source import Lines, apply_override, dotted, load_tree
 from orchestration.roles import check_variable, read_unit
@@ -50,6 +56,29 @@ CONTROLLER = "controller"  # the unit a strategy replaces
 COMMAND, LIMIT = "i", "i_max"  # our controllers' names for the current command and its limit (orchestration.roles)
 LIMIT_OVERRIDE = f"{CONTROLLER}.{LIMIT}="  # the studies' override of the controller's current limit
 I_MAX, BEST = "${i_max}", "${best_current}"  # placeholders in parameter values
+
+
+class TunableRange(BaseModel):
+    """The range a tuner searches for one FMU parameter, in the parameter's own unit: ``scale`` log (low > 0) or
+    linear; empty, inverted and non-finite ranges are refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    low: float
+    high: float
+    scale: Literal["log", "linear"] = "linear"
+
+    @model_validator(mode="after")
+    def _check(self) -> TunableRange:
+        if not (math.isfinite(self.low) and math.isfinite(self.high)):
+            raise ValueError(f"a tunable range needs finite low and high, got low = {self.low!r}, high = {self.high!r}")
+        if self.low == self.high:
+            raise ValueError(f"the tunable range is empty: low = high = {self.low!r}")
+        if self.low > self.high:
+            raise ValueError(f"the tunable range is inverted: low = {self.low!r} > high = {self.high!r}")
+        if self.scale == "log" and self.low <= 0:
+            raise ValueError(f"a log range must lie above 0, got low = {self.low!r} (use scale: linear, or low > 0)")
+        return self
 
 
 class StrategyEntry(BaseModel):
@@ -65,6 +94,16 @@ class StrategyEntry(BaseModel):
     connections: list[Any] | None = None  # replace the scenario's connections into the controller
     current: str = COMMAND  # the controller output that is its current command [A] (the role's ``i``)
     limit: str | None = None  # the parameter the study's current limit sets [A]; None: i_max where the FMU has it
+    tunable: dict[str, TunableRange] = Field(default_factory=dict)  # FMU parameter -> the range the tuner searches
+    tuned: dict[str, Any] | None = None  # a tuned entry: what it was tuned on (records, objective, budget, seed, ...)
+
+    @field_validator("tunable")
+    @classmethod
+    def _parameter_names(cls, value: dict[str, TunableRange]) -> dict[str, TunableRange]:
+        for name in value:
+            if not name.strip() or name != name.strip() or "\x00" in name or "." in name:
+                raise ValueError(f"tunable: {name!r} is not the name of one of the controller FMU's parameters")
+        return value
 
     @field_validator("current", "limit")
     @classmethod
@@ -308,11 +347,13 @@ def builtin_strategies() -> dict[str, Strategy]:
 
 def unknown_strategies(names: list[str], known: dict[str, Strategy], lines: Lines, path: Path, key: str
                        ) -> list[Problem]:
-    """A located problem for every name in ``names`` (the study's list ``key``) that is not a known strategy."""
+    """A located problem for every name in ``names`` (the study's list ``key``, dotted if nested) that is not a
+    known strategy."""
     problems = []
+    parts = tuple(key.split("."))
     for k, name in enumerate(names):
         if name not in known:
-            file, line = lines.get((key, k), lines.get((key,), (str(path), None)))
+            file, line = lines.get((*parts, k), lines.get(parts, (str(path), None)))
             problems.append(Problem(f"unknown strategy {name!r} (known: {', '.join(known)})", f"{key}.{k}",
                                     file, line))
     return problems
@@ -365,6 +406,7 @@ def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_
         for sub in ("source", "target"):
             lines[(*scen_key, sub)] = strategy.where(*own, sub)
     role, missing = role_problems(strategy)
+    role += tunable_problems(strategy)
     try:
         resolve_scenario(validate_scenario(data, lines, scenario, REPORT.model))
     except ScenarioError as exc:  # the engine's own problems, but not again for a role variable already reported
@@ -396,6 +438,39 @@ def role_problems(strategy: Strategy) -> tuple[list[Problem], set[str]]:
         if warning and key == "limit":  # the current's own is the engine's, on its connection to the device
             warn_once(warning)
     return problems, names
+
+
+NUMERIC = ("Real", "Integer")  # FMU variable types a tuner can set from a range
+
+
+def tunable_problems(strategy: Strategy, unit: UnitDescription | None = None) -> list[Problem]:
+    """A located problem (at ``tunable.<name>``) for each tunable parameter the controller lacks, that is no
+    numeric parameter, or whose range leaves the FMU's declared min/max. ``unit``: the controller's description
+    (default: the entry's FMU; nothing when there is none or it cannot be read: the engine's checks say why)."""
+    if not strategy.entry.tunable:
+        return []
+    if unit is None:
+        path = strategy.fmu_path
+        if path is None or fmu_variables(path) is None:
+            return []
+        unit = read_unit(path, CONTROLLER)
+    model = unit.model_identifier or CONTROLLER
+    problems = []
+    for name, rng in strategy.entry.tunable.items():
+        var = unit.variables.get(name)
+        if var is None or var.causality != "parameter" or var.type not in NUMERIC:
+            what = "has no variable" if var is None else (
+                f"has {name!r} as a {var.causality} of type {var.type}, not a numeric (Real or Integer) parameter")
+            text = f"{model} {what}" + (f" {name!r}" if var is None else "")
+            problems.append(strategy.problem(f"tunable parameter {name!r}: {text} (strategy {strategy.name!r})",
+                                             "tunable", name))
+            continue
+        below = var.min_value is not None and rng.low < var.min_value
+        if below or (var.max_value is not None and rng.high > var.max_value):
+            problems.append(strategy.problem(
+                f"tunable parameter {name!r}: the range [{rng.low:g}, {rng.high:g}] leaves {model}'s declared "
+                f"[{var.min_value}, {var.max_value}] (strategy {strategy.name!r})", "tunable", name))
+    return problems
 
 
 def _relocated(problem: Problem, here: dict[tuple[Any, ...], tuple[Any, ...]], strategy: Strategy) -> Problem:

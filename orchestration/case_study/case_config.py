@@ -138,6 +138,42 @@ class TuningSpec(_Strict):
         return value
 
 
+class StrategyTuningSpec(_Strict):
+    """Which strategies ``tune.py`` tunes alike (:mod:`orchestration.case_study.strategy_tuner`), on what, how long.
+
+    Each listed strategy's ``tunable:`` parameters are searched by differential evolution with the same ``budget``
+    (parameter settings, each one co-simulation per record, the first ``stop_time`` seconds) and the same ``seed``,
+    against the study's ``objective``; the tuned entries are written as a strategy file, ``output`` (relative to the
+    study's ``output`` folder).
+    """
+
+    strategies: list[str] = Field(min_length=1)  # names of strategy entries that declare tunable:
+    record: str | list[str] = "elcentro"  # the training records: J is their mean
+    stop_time: float | None = Field(20.0, gt=0.0)  # s, every training run's length; None: each record's own
+    budget: int = Field(40, ge=1, le=MAX_TUNING_EVALS)  # parameter settings tried per strategy (>= parameters + 1)
+    seed: int = Field(1, ge=0, lt=2**32)  # one seed for every strategy
+    output: str = "tuned_strategies.yaml"  # the strategy file written, in the study's output folder
+
+    @property
+    def records(self) -> list[str]:
+        """The training records, in order."""
+        return [self.record] if isinstance(self.record, str) else list(self.record)
+
+    @field_validator("record")
+    @classmethod
+    def _record(cls, value: str | list[str]) -> str | list[str]:
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError("strategy_tuning.record needs at least one record, each once")
+        return value
+
+    @field_validator("strategies")
+    @classmethod
+    def _strategies(cls, value: list[str]) -> list[str]:
+        if len(set(value)) != len(value):
+            raise ValueError("strategy_tuning.strategies lists a strategy twice")
+        return value
+
+
 class GainSetSpec(_Strict):
     """The second SOSM gain set (strategy ``sosm-fig15``): its own current limit, objective and tuning.
 
@@ -193,6 +229,7 @@ class StudySpec(_Strict):
     objective: ObjectiveSpec = Field(default_factory=ObjectiveSpec)
     tuning: TuningSpec = Field(default_factory=TuningSpec)
     fig15: GainSetSpec = Field(default_factory=GainSetSpec)  # the second gain set (strategy sosm-fig15)
+    strategy_tuning: StrategyTuningSpec | None = None  # tune.py: tune these strategies alike (not the SOSM gains)
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
     workers: int | None = None  # local cluster: worker processes (None: one per core)
     max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
@@ -301,6 +338,9 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
             missing.append(Problem(f"strategy file {p.resolve()} does not exist", f"strategy_files.{k}", file, line))
     if not missing:
         missing = unknown_strategies(spec.strategies, study.library, lines, path, "strategies")
+    if not missing and spec.strategy_tuning is not None:
+        missing = unknown_strategies(spec.strategy_tuning.strategies, study.library, lines, path,
+                                     "strategy_tuning.strategies")
     if not missing:
         missing = folder_name_problems(study) + best_current_problems(study)
     if missing:
