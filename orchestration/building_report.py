@@ -19,15 +19,22 @@ from typing import Any
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator
 
+from components.physics.building_periods import (
+    REFERENCE_DISPLACEMENT_M,
+    fixed_base_periods,
+    isolated_period,
+    isolator_secant_stiffness,
+)
 from components.physics.mre_isolator_core import DEVICE_LIMIT_M, IDENTIFIED_RANGE_M
 from components.physics.shear_building_core import ENERGY_NAMES
+from orchestration.building_studies.isolated_structure import NotMonolithic, structure_setup
 from orchestration.master.recorder import Recorder
 from orchestration.master.report import Figures, ReportHook, RunDescription, peak, sample_interval
 from orchestration.master.scenario import Number, ReportSpec, VariableRef, variable_refs
 
 __all__ = ["DEFAULT_ENERGY_TOLERANCE", "DEFAULT_STEP_TOLERANCE", "DEVICE_LIMIT_M", "IDENTIFIED_RANGE_M", "REPORT",
-           "BuildingReport", "displacement_limits", "energy_section", "physical_outcome", "plot", "step_changes",
-           "strong_motion_window", "summarize"]
+           "BuildingReport", "displacement_limits", "energy_section", "periods_section", "physical_outcome", "plot",
+           "step_changes", "strong_motion_window", "summarize"]
 # IDENTIFIED_RANGE_M, DEVICE_LIMIT_M: the limits drawn when a scenario names none: the isolator
 # model was identified on +-8 mm and the device allows 15 mm (paper, section 2).
 DEFAULT_ENERGY_TOLERANCE = 0.01
@@ -129,11 +136,33 @@ def summarize(spec: BuildingReport, rec: Recorder, run: RunDescription) -> dict[
     physical = physical_outcome(spec, rec, run)
     if physical:
         out["physical"] = physical
+    if spec.base_displacement is not None:
+        out["periods"] = periods_section(run)
     energy, reasons = energy_section(spec, rec, run)
     if energy is not None:
         out["energy"] = energy
     out["invalid_reasons"] = reasons  # the engine adds its own (non-finite values) and sets ``valid``
     return out
+
+
+def periods_section(run: RunDescription, displacement: float = REFERENCE_DISPLACEMENT_M) -> dict[str, Any]:
+    """The building's periods [s]: fixed base (the storeys above the base floor, every mode, longest first) and
+    the isolated first mode at 0 A and at the run's i_max, with the isolators' secant stiffness at
+    ``displacement`` [m]; ``{"note": why}`` for a system the in-process model does not represent."""
+    try:
+        s = structure_setup(run.model_names, run.set_values)
+        iso = {current: (isolator_secant_stiffness(s.coeffs, s.n_isolators, current, displacement),
+                         isolated_period(s.building, s.coeffs, s.n_isolators, current, displacement))
+               for current in (0.0, s.i_max)}
+        fixed = fixed_base_periods(s.building)
+    except (NotMonolithic, ValueError, ArithmeticError) as exc:
+        return {"note": f"not computed: {exc}"}
+    return {"fixed_base_s": fixed, "isolated_0A_s": iso[0.0][1], "isolated_i_max_s": iso[s.i_max][1],
+            "i_max_A": s.i_max, "reference_displacement_m": displacement,
+            "isolator_secant_stiffness_0A_N_m": iso[0.0][0], "isolator_secant_stiffness_i_max_N_m": iso[s.i_max][0],
+            "note": "fixed base: the storeys above the base floor with the base floor held, every mode, longest "
+                    "first; isolated: the first mode of the whole building with the isolators as a linear spring "
+                    "of their secant stiffness at the reference displacement"}
 
 
 def strong_motion_window(t: np.ndarray, ag: np.ndarray) -> tuple[float, float] | None:

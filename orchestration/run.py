@@ -91,7 +91,7 @@ def _run(argv: list[str] | None) -> int:
     warnings = sum(outcome.summary.get("unit_warnings", {}).values())
     if outcome.result.complete:
         print(f"run complete: {outcome.folder} ({warnings} unit warning{'s' if warnings != 1 else ''})")
-        print(*verdict_lines(outcome.summary), *peak_lines(outcome.summary), sep="\n")
+        print(*verdict_lines(outcome.summary), *peak_lines(outcome.summary), *period_lines(outcome.summary), sep="\n")
         note = outcome.summary.get("executor_note")
         if note and outcome.summary.get("executor") != "native":  # e.g. no C compiler: slower, not wrong
             print(f"note: the master's C loop was not used ({note}); the Python executor ran it, with the same "
@@ -159,6 +159,20 @@ def peak_lines(summary: dict) -> list[str]:
         parts.append(f"current {summary['peak_current_A']:.3g} A"
                      + (f" (mean {mean:.3g} A)" if isinstance(mean, (int, float)) else ""))
     return ["peaks: " + "; ".join(parts)] if parts else []
+
+
+def period_lines(summary: dict) -> list[str]:
+    """The building's periods from ``summary.json``'s ``periods`` section (fixed base, isolated at 0 A and
+    i_max), or why they are absent; nothing for a system without the section."""
+    periods = summary.get("periods")
+    if not isinstance(periods, dict):
+        return []
+    if "fixed_base_s" not in periods:
+        return [f"periods: {periods.get('note', 'not computed')}"]
+    fixed = ", ".join(f"{t:.3g}" for t in periods["fixed_base_s"])
+    return [f"periods: fixed base {fixed} s; isolated T1 {periods['isolated_0A_s']:.3g} s at 0 A, "
+            f"{periods['isolated_i_max_s']:.3g} s at {periods['i_max_A']:g} A (isolators' secant stiffness at "
+            f"{1e3 * periods['reference_displacement_m']:g} mm)"]
 
 
 def results_note(folder: Path) -> str:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from components.physics.building_periods import isolated_period
 from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
 from orchestration.building_studies.gains_file import read_gains
@@ -24,7 +25,7 @@ from orchestration.building_studies.run_settings import RECORDED, every_step_pro
 from orchestration.building_studies.strategies import Strategy, check_strategy
 from orchestration.engine_hooks import plan_scenario
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
-from orchestration.ida_study.intensity import isolated_period, measure
+from orchestration.ida_study.intensity import measure
 from orchestration.ida_study.suites import (
     SuiteRecord,
     Window,

@@ -46,6 +46,7 @@ class RunDescription:
     model_names: dict[str, str]  # unit -> the FMU's model name
     labels: dict[str, str] = field(default_factory=dict)
     held: frozenset[str] = frozenset()  # "unit.var" Real outputs held on the base grid (discrete, or a unit's own step)
+    set_values: dict[str, dict[str, Any]] = field(default_factory=dict)  # unit -> parameter -> value the scenario set
 
     def value(self, unit: str, name: str) -> Any:
         """A parameter's value as the run used it, or None if the unit has no such parameter."""

@@ -71,7 +71,8 @@ def _checked_hash(plan: SystemPlan, path: Path) -> str | None:
 
 
 def describe_run(plan: SystemPlan) -> RunDescription:
-    """Each unit's parameter values as the run uses them (set in the scenario, else declared), for captions."""
+    """Each unit's parameter values as the run uses them (set in the scenario, else declared), for captions, and
+    those the scenario set."""
     values = {}
     for unit, desc in plan.descriptions.items():
         declared = {v.name: start_value(v) for v in desc.variables.values()
@@ -80,7 +81,8 @@ def describe_run(plan: SystemPlan) -> RunDescription:
     names = {unit: desc.model_identifier or desc.name for unit, desc in plan.descriptions.items()}
     held = frozenset(f"{unit}.{v.name}" for unit, desc in plan.descriptions.items() for v in desc.variables.values()
                      if v.causality == "output" and (v.variability == "discrete" or plan.periods.get(unit, 1) > 1))
-    return RunDescription(values, names, dict(plan.report.labels), held)
+    set_values = {unit: dict(plan.parameters.get(unit, {})) for unit in plan.descriptions}
+    return RunDescription(values, names, dict(plan.report.labels), held, set_values)
 
 
 def _plot_inline(recorder: Recorder, plan: SystemPlan, folder: Path, described: RunDescription,

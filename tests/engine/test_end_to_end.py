@@ -50,6 +50,7 @@ def test_shipped_scenarios_run_from_the_cli(tmp_path, name, variant):
         assert key in summary
     if variant:
         assert summary["peak_current_A"] == 0.0
+    assert "periods: fixed base " in proc.stdout and summary["periods"]["fixed_base_s"]
 
 
 def test_cli_scenario_error_exits_2_and_writes_nothing(tmp_path):
@@ -160,6 +161,8 @@ def test_swapping_in_the_bouc_wen_isolator(tmp_path):
     assert np.max(np.abs(F)) > 0 and np.max(np.abs(x)) > 0
     # a restoring force: it opposes the displacement over most of the run
     assert np.mean(np.sign(F[x != 0]) == np.sign(x[x != 0])) > 0.5
+    # no periods for an isolator the in-process model lacks: the section says why
+    assert "isolator is BoucWenIsolator" in out.summary["periods"]["note"] and len(out.summary["periods"]) == 1
 
 
 def test_the_run_folder_csv_is_the_recorded_data_formatted_exactly(tmp_path):
@@ -176,3 +179,10 @@ def test_the_run_folder_csv_is_the_recorded_data_formatted_exactly(tmp_path):
     assert written == expected.encode()
     rec.write_csv(tmp_path / "again.csv")
     assert (tmp_path / "again.csv").read_bytes() == written
+
+    # the same Kobe run's summary.json has the building's periods: fixed base, and T1 at 0 A and i_max (8 mm)
+    periods = json.loads((outcome.folder / "summary.json").read_text())["periods"]
+    assert periods["fixed_base_s"] == pytest.approx([0.1838, 0.06325, 0.04232], rel=1e-3)
+    assert periods["isolated_0A_s"] == pytest.approx(0.8396, rel=1e-3)
+    assert periods["isolated_i_max_s"] == pytest.approx(0.2106, rel=1e-3)
+    assert periods["i_max_A"] == 3.0 and periods["reference_displacement_m"] == 0.008

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from scipy.signal import lsim
 
+from components.physics.building_periods import isolated_period
 from components.physics.mre_isolator_core import TABLE2, isolator_force
 from components.physics.response_spectrum import pseudo_acceleration, resample_uniform, sdof_displacement
 from components.physics.shear_building_core import BuildingParams
-from orchestration.ida_study.intensity import isolated_period, measure
+from orchestration.ida_study.intensity import measure
 from orchestration.ida_study.suites import (
     FEMA_FAR_FIELD,
     SuiteRecord,
