@@ -172,7 +172,7 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
     import matplotlib.pyplot as plt
 
     records = list(study.records)
-    fig, axes = plt.subplots(len(records), 2, figsize=(8, 2.4 * len(records)), squeeze=False)
+    fig, axes = plt.subplots(len(records), 2, figsize=(10, 2.4 * len(records)), squeeze=False)
     where: dict[str, list[str]] = {}
     for row, r in enumerate(records):
         drawn: tuple[dict[str, list[float]], dict[str, list[float]]] = ({}, {})
@@ -197,7 +197,9 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
         for ax in axes[row]:
             ax.grid(alpha=0.3)
             few_ticks(ax.xaxis)
-    add_legend_notes(axes[0, 1], _where(where, [named(study, r) for r in records]), fontsize=7)
+    # the legend right of the panels, where it hides no profile
+    add_legend_notes(axes[0, 1], _where(where, [named(study, r) for r in records]), fontsize=7,
+                     loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     fig.tight_layout()
     return fig
 
@@ -252,6 +254,41 @@ def sweep_figure(study: CaseStudyRecord) -> Any:
     return fig
 
 
+def run_periods(folder: Path, study: CaseStudyRecord) -> dict[str, float]:
+    """The isolated periods of the study's first run that reports them (its summary.json's ``periods``), by
+    label: T1 at 0 A and at the current limit [s]; empty when no run does (a swapped unit, an older folder)."""
+    import json
+
+    for run in study.runs:
+        try:
+            periods = json.loads((folder / run.folder / "summary.json").read_text()).get("periods") or {}
+        except (OSError, ValueError, AttributeError):
+            continue
+        if "isolated_0A_s" in periods:
+            marks = {"T1 at 0 A": float(periods["isolated_0A_s"])}
+            if periods.get("isolated_i_max_s"):
+                marks[f"T1 at {periods.get('i_max_A', 0):g} A"] = float(periods["isolated_i_max_s"])
+            return marks
+    return {}
+
+
+def spectra_figure(folder: Path, study: CaseStudyRecord) -> Any:
+    """Each record's response spectrum as the runs play it (amplitude and time scale applied), the isolated
+    periods marked (:func:`run_periods`); None when a record's file is not on this machine."""
+    from components.physics.ground_motion_core import RecordError, read_record
+    from orchestration.spectrum_figure import spectrum, spectrum_figure
+
+    curves = {}
+    for r, info in study.records.items():
+        try:
+            rec = read_record(Path(info.record_file))
+        except (OSError, RecordError, ValueError):
+            return None
+        curves[named(study, r)] = spectrum(rec.time, rec.accel_g, info.scale if info.scale is not None else 1.0,
+                                          info.time_scale)
+    return spectrum_figure(curves, run_periods(folder, study), "the records as the runs play them")
+
+
 def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series: Series,
                  files: FigureFiles = PNG_ONLY) -> dict[str, Path]:
     """Every figure into ``folder/figures`` (PNG, and each of ``files.formats`` beside it); name -> PNG, in the
@@ -267,6 +304,7 @@ def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series:
         ("fig17_profiles", lambda: profiles_figure(study, metrics))]
     draw += [(f"hysteresis_{r}", lambda r=r: hysteresis_figure(study, series, r)) for r in study.records]
     draw.append(("sweep", lambda: sweep_figure(study)))
+    draw.append(("spectra", lambda: spectra_figure(folder, study)))
     made: dict[str, Path] = {}
     for name, figure in draw:  # one figure open at a time
         fig = figure()

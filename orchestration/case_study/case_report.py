@@ -42,7 +42,10 @@ CAPTIONS = {"fig15_current": "SOSM current per record, one column per gain set (
             "fig16_top_acceleration": "Top-floor absolute acceleration, passive vs SOSM (cf. Fig. 16).",
             "fig17_profiles": "Peak drift per storey and peak acceleration per level (cf. Fig. 17); a line style and "
                               "marker per strategy, and the legend names strategies whose profiles coincide.",
-            "sweep": "Objective J against the constant current."}
+            "sweep": "Objective J against the constant current.",
+            "spectra": "Each record's 5 %-damped response spectrum as the runs play it (amplitude and time scale "
+                       "applied), with the isolated first-mode period at 0 A and at the current limit (the "
+                       "isolators' secant stiffness at 8 mm) from the runs' summary.json."}
 
 
 def _order(key: str, study: CaseStudyRecord) -> tuple[int, int]:

@@ -6,6 +6,8 @@
 * ``figures/fragility.png``: one panel per limit state, a curve per strategy (controller) on
   each: the fitted lognormal, its confidence band, and the observed fraction at each level; each strategy
   its own line style and marker, and the legend says where two strategies' fitted curves coincide.
+* ``figures/spectra.png``: every component's response spectrum as the runs play it at the first level, their
+  median and T1 marked (:mod:`orchestration.spectrum_figure`).
 
 Each is a PNG at :data:`IDA_DPI` (or ``--dpi``), with the vector formats asked for beside it (``--format``).
 """
@@ -141,3 +143,27 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
     fig.suptitle(f"{info.name}: fragility, lognormal MLE with {100 * spec.confidence:g} % band", fontsize=10)
     fig.tight_layout()
     _save(fig, path, files)
+
+
+def spectra_figure(path: Path, info: IdaInfo, records: Path, files: FigureFiles = PNG_ONLY) -> bool:
+    """``figures/spectra.png``: every component's response spectrum as the runs play it at the first intensity
+    level (windowed, time-scaled, scaled to the level), their median, and T1 marked; False (nothing drawn) when a
+    component's file in ``records`` is missing or unreadable (a folder copied without its records)."""
+    from components.physics.ground_motion_core import RecordError, read_record
+    from orchestration.spectrum_figure import spectrum, spectrum_figure
+
+    level = float(info.config["intensity"]["levels"][0])
+    time_scale = float(info.config.get("time_scale", 1.0))
+    curves = {}
+    for c in info.components:
+        try:
+            rec = read_record(records / f"{c.id}.csv")
+        except (OSError, RecordError):
+            return False
+        curves[c.id] = spectrum(rec.time, rec.accel_g, level / c.im, time_scale)
+    marks = {"T1 (isolated)": info.period_s} if info.period_s else {}
+    measure = im_label(info).removesuffix(" [g]")
+    fig = spectrum_figure(curves, marks, f"{len(curves)} components scaled to {measure} = {level:g} g, as played",
+                          median=len(curves) > 4)
+    _save(fig, path, files)
+    return True

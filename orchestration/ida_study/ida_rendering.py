@@ -178,10 +178,12 @@ def _collapse(spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[st
     return [*lines, _table(["limit state", "strategy", "fit", "S_CT [g]", "low", "high", "β", "margin"], table), ""]
 
 
-def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]:
-    """Figures, failed runs, the records and the provenance."""
+def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]], spectra: bool = False) -> list[str]:
+    """Figures (with the response spectra when ``spectra``), failed runs, the records and the provenance."""
     lines = ["## Figures", "", "![IDA curves](figures/ida_curves.png)", "",
              "![fragility curves](figures/fragility.png)", ""]
+    if spectra:
+        lines += ["![response spectra](figures/spectra.png)", ""]
     bad = [r for r in rows if r["status"] not in ENDED]
     if bad:
         lines += ["## Failed runs", "", _table(["run", "status", "reason"],
@@ -199,10 +201,11 @@ def _runs_and_provenance(info: IdaInfo, rows: list[dict[str, Any]]) -> list[str]
             + (", interrupted" if info.interrupted else "") + ".", ""]
 
 
-def report_markdown(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]]) -> str:
-    """The report's Markdown (figures referenced as files)."""
+def report_markdown(info: IdaInfo, spec: IdaSpec, rows: list[dict[str, Any]], fits: dict[str, dict[str, Fit]],
+                    spectra: bool = False) -> str:
+    """The report's Markdown (figures referenced as files; ``spectra``: the response spectra figure was drawn)."""
     return "\n".join([*_settings(info, spec, rows), *_fits(spec, fits, rows), *_stroke(spec, fits),
-                      *_collapse(spec, rows, fits), *_runs_and_provenance(info, rows)])
+                      *_collapse(spec, rows, fits), *_runs_and_provenance(info, rows, spectra)])
 
 
 def _inline(text: str) -> str:

@@ -13,7 +13,7 @@ from typing import Any
 
 from orchestration.ida_study.fragility import Fit
 from orchestration.ida_study.ida_config import IdaSpec
-from orchestration.ida_study.ida_figures import fragility_figure, ida_figure
+from orchestration.ida_study.ida_figures import fragility_figure, ida_figure, spectra_figure
 from orchestration.ida_study.ida_metrics import (
     collapse_margins,
     fragilities,
@@ -34,7 +34,8 @@ def write_report(folder: Path, info: IdaInfo, spec: IdaSpec, rows: list[dict[str
     (folder / "figures").mkdir(exist_ok=True)
     ida_figure(folder / "figures" / "ida_curves.png", info, rows, list(info.strategies), files)
     fragility_figure(folder / "figures" / "fragility.png", info, spec, fits, files)
-    markdown = report_markdown(info, spec, rows, fits)
+    spectra = spectra_figure(folder / "figures" / "spectra.png", info, folder / "records", files)
+    markdown = report_markdown(info, spec, rows, fits, spectra)
     write_text(folder / "report.md", markdown)
     write_text(folder / "report.html", report_html(markdown, folder))
 

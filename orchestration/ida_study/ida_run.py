@@ -12,7 +12,7 @@ folder gets:
 | ``results.parquet``, ``.csv`` | a row per run: record, component, intensity, strategy, peaks, indices, status, time |
 | ``fragility.csv`` | per limit state and strategy: stripes, the lognormal fit (median, beta, its interval) |
 | ``collapse.csv`` | with a ``collapse`` limit state: S_CT per strategy, its margin (FEMA P695's CMR with S_MT) |
-| ``figures/`` | ``ida_curves.png`` (per strategy), ``fragility.png`` (per limit state, strategies side by side) |
+| ``figures/`` | ``ida_curves.png`` (per strategy), ``fragility.png`` (per limit state), ``spectra.png`` (spectra) |
 | ``report.md``, ``report.html`` | settings, fits, a verdict per limit state, failed runs |
 | ``ida.json`` | configuration, suite, windows, period, intensities, provenance, batch pool |
 | ``records/`` | the windowed components the runs played (``time_s,accel_g``) |

@@ -128,7 +128,7 @@ def test_small_ida_end_to_end_then_resume(tmp_path):
                                                                 for s in ("passive-off", "sosm")}
     report = (out / "report.md").read_text()
     assert "## Verdict per limit state" in report and "**iso15**" in report and "**acc**" in report
-    assert (out / "report.html").read_text().count("data:image/png;base64,") == 2
+    assert (out / "report.html").read_text().count("data:image/png;base64,") == 3  # curves, fragility, spectra
     info = json.loads((out / "ida.json").read_text())
     assert info["runs_computed"] == 8 and 0.5 < info["period_s"] < 1.5
 

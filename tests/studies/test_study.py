@@ -113,7 +113,8 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     assert "**amplitude reading**" in report
     assert (out / "figures" / "pareto.png").stat().st_size > 0  # from the second gain set's tuning evaluations
     html = (out / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 6
+    assert html.count("data:image/png;base64,") == 7  # Fig. 15-17, pareto, 2 hysteresis, response spectra
+    assert (out / "figures" / "spectra.png").stat().st_size > 0  # T1 from the runs' summary.json periods
 
     # Regenerating the report from the data gives the same tables.
     before = (out / "peaks.csv").read_text()
