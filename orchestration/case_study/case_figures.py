@@ -5,6 +5,7 @@ strategy has its own line style and marker, and a legend says where two strategi
 from __future__ import annotations
 
 import re
+import textwrap
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
@@ -51,9 +52,11 @@ def _where(records: dict[str, list[str]], names: list[str]) -> list[str]:
 
 
 def named(study: CaseStudyRecord, r: str) -> str:
-    """A record's name with its amplitude scale (``kobe ×0.5``)."""
-    scale = study.records[r].scale
-    return f"{r} ×{scale:g}" if isinstance(scale, int | float) else r
+    """A record's readable name with its amplitude scale (``Kobe 1995 JMA N-S ×0.5``; the id where the scenario
+    names none)."""
+    info = study.records[r]
+    name = getattr(info, "name", None) or r
+    return f"{name} ×{info.scale:g}" if isinstance(info.scale, int | float) else name
 
 
 def pareto_figure(study: CaseStudyRecord) -> Any:
@@ -192,7 +195,8 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
             panel = "" if pair in pairs[0] and pair in pairs[1] else " drift" if pair in pairs[0] else " acceleration"
             where.setdefault(coincidence_note(*pair), []).append(named(study, r) + panel)
         n_levels = len(study.records[r].masses_kg)
-        axes[row, 0].set(ylabel=f"{named(study, r)}\nstorey", xlabel="peak drift [mm]", yticks=range(1, n_levels))
+        axes[row, 0].set(ylabel=f"{textwrap.fill(named(study, r), 22)}\nstorey", xlabel="peak drift [mm]",
+                         yticks=range(1, n_levels))
         axes[row, 1].set(ylabel="level (0 = base)", xlabel="peak abs. acceleration [m/s²]", yticks=range(n_levels))
         for ax in axes[row]:
             ax.grid(alpha=0.3)
@@ -245,7 +249,8 @@ def sweep_figure(study: CaseStudyRecord) -> Any:
     for r, sw in study.sweep.items():
         if not sw.ok:
             continue
-        line = ax.plot([q["current_A"] for q in sw.rows], [q["J"] for q in sw.rows], marker=".", label=r)[0]
+        line = ax.plot([q["current_A"] for q in sw.rows], [q["J"] for q in sw.rows], marker=".",
+                       label=named(study, r))[0]
         ax.plot([sw.best_current_A], [sw.best_J], marker="o", ms=8, mfc="none", color=line.get_color())
     ax.set(xlabel="constant current [A]", ylabel="objective J", yscale="log",
            title="constant-current sweep (in-process); circle = best")

@@ -81,8 +81,19 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
     ground = plan.parameters.get("ground", {})
     info = RecordInfo(str(path), sim.stop_time, masses, str(plan.data_files.get("ground.record", "")),
                       ground.get("scale"), ground.get("time_scale", 1.0),
-                      plan.parameters.get("isolator", {}).get("n_isolators"))
+                      plan.parameters.get("isolator", {}).get("n_isolators"), record_name(plan))
     return info, plan
+
+
+def record_name(plan: Any) -> str | None:
+    """The scenario's readable name of its ground record (``report.labels``: ``ground.record=FILE: name``), or
+    None: the study's record id stands for it."""
+    played = Path(str(plan.data_files.get("ground.record", ""))).name
+    for key, label in plan.report.labels.items():
+        variable, _, value = key.partition("=")
+        if variable == "ground.record" and value and Path(value).name == played:
+            return str(label)
+    return None
 
 
 def prepare(study: LoadedStudy) -> PreparedStudy:

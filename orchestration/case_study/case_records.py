@@ -32,6 +32,7 @@ class RecordInfo:
     scale: float | None  # amplitude scale of the ground motion
     time_scale: float  # time scale of the ground motion (1: as recorded)
     n_isolators: int | None
+    name: str | None = None  # the record's name for a reader (the scenario's label of ground.record), or None
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -40,7 +41,7 @@ class RecordInfo:
     def from_json(cls, d: dict[str, Any]) -> RecordInfo:
         return cls(scenario=d.get("scenario", ""), stop_time_s=d["stop_time_s"], masses_kg=list(d["masses_kg"]),
                    record_file=d.get("record_file", ""), scale=d.get("scale"), time_scale=d.get("time_scale", 1.0),
-                   n_isolators=d.get("n_isolators"))
+                   n_isolators=d.get("n_isolators"), name=d.get("name"))
 
 
 @dataclass

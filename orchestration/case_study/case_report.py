@@ -322,7 +322,8 @@ def verdict_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
               Block("p", f"Lower is better; a difference within {100 * TIE:g} % is called a tie. Peak drift is the "
                          "largest over the three storeys.")]
     for r in study.records:
-        blocks.append(Block("h", r, level=3))
+        name = study.records[r].name
+        blocks.append(Block("h", f"{r} ({name})" if name else r, level=3))  # the id, and the record's name
         if not _controlled(study):
             blocks.append(Block("p", "SOSM is not part of this study: no verdict."))
             continue

@@ -108,6 +108,7 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     assert "## The paper's claims on our system" in report
     for record in ("elcentro", "hachinohe"):
         assert f"### {record}" in report
+    assert "### elcentro (El Centro 1940 N-S)" in report  # the id, and the scenario's name of the record
     assert "**sosm** vs **passive-off**" in report and "**sosm** current:" in report
     assert "**sosm-fig15** vs **passive-off**" in report and "### Current statistics (Fig. 15)" in report
     assert "**amplitude reading**" in report
