@@ -48,6 +48,7 @@ from components.identification.generalized import GeneralizationError
 from components.identification.testdata import TestDataError
 from orchestration.batch import default_workers
 from orchestration.cli import EPILOG_COMMON, invoked_as, run_tool
+from orchestration.figure_options import add_figure_arguments, figure_files
 from orchestration.identification.ident_config import ConfigError, load_config
 from orchestration.identification.ident_pipeline import PARALLEL_MIN_S, run
 from orchestration.identification.ident_report import summary_text
@@ -117,7 +118,9 @@ def _identify(argv: list[str] | None) -> int:
                         help="identify the conditions in N processes of the batch pool (1 = in this "
                              "process; default: one per CPU, but only when the FFOA work is large enough to pay "
                              "for starting them, see docs/identification.md)")
+    add_figure_arguments(parser, default_note="110")
     args = parser.parse_args(argv)
+    files = figure_files(args)
     workers = default_workers() if args.workers is None else args.workers
     if workers < 1:
         parser.error("--workers must be >= 1")
@@ -129,7 +132,8 @@ def _identify(argv: list[str] | None) -> int:
         cfg = load_config(args.config)
         out = args.out if args.out is not None else Path(cfg["output"])
         result = run(cfg, out, overwrite=args.overwrite, progress=not args.quiet,
-                     map_fn=lambda func, items: process_map(func, items, workers), min_parallel_s=min_parallel_s)
+                     map_fn=lambda func, items: process_map(func, items, workers), min_parallel_s=min_parallel_s,
+                     files=files)
     except (ConfigError, TestDataError, GeneralizationError, FileExistsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

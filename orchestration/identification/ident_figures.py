@@ -12,7 +12,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from components.identification.models import bouc_wen_predict, hyperbolic_predict
-from mre_common.atomic_files import atomic_write
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles, save_figure
+
+IDENT_DPI = 110  # [dots per inch] the PNGs' resolution unless --dpi asks for another
 
 if TYPE_CHECKING:
     from components.identification.identifiers import IdentResult
@@ -21,7 +23,7 @@ if TYPE_CHECKING:
     from orchestration.identification.ident_result import RunResult
 
 
-def _save(fig, path: Path, synthetic: bool) -> None:
+def _save(fig, path: Path, synthetic: bool, files: FigureFiles) -> None:
     if synthetic:
         fig.text(
             0.5,
@@ -33,7 +35,7 @@ def _save(fig, path: Path, synthetic: bool) -> None:
             fontsize=8,
         )
     try:
-        atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"), binary=True)
+        save_figure(fig, path, files, IDENT_DPI, tight=False)
     finally:
         plt.close(fig)
 
@@ -76,7 +78,7 @@ def _loops(axes, rr: RunResult, name: str, conds, label) -> bool:
     return drawn
 
 
-def fig6(out: Path, rr: RunResult) -> None:
+def fig6(out: Path, rr: RunResult, files: FigureFiles = PNG_ONLY) -> None:
     """FFOA flight path of k0 and convergence (paper: 4 Hz, 2 mm; 1 A gives k0 = 16.38)."""
     per = rr.results.get("hyperbolic-ffoa")
     if not per:
@@ -91,10 +93,10 @@ def fig6(out: Path, rr: RunResult) -> None:
     ax[1].semilogy(np.arange(1, r.history.size + 1), r.history)
     ax[1].set(xlabel="iteration", ylabel="best RMS error [N]", title="(b) convergence")
     fig.suptitle(f"Fig. 6: FFOA, hyperbolic model, {cond[0]:g} Hz {cond[1]:g} mm {cond[2]:g} A")
-    _save(fig, out / "fig6_ffoa_convergence.png", rr.synthetic)
+    _save(fig, out / "fig6_ffoa_convergence.png", rr.synthetic, files)
 
 
-def fig7_8_9(out: Path, rr: RunResult) -> None:
+def fig7_8_9(out: Path, rr: RunResult, files: FigureFiles = PNG_ONLY) -> None:
     """Measured vs predicted loops: Fig. 7 (2 mm, 1 A), Fig. 8 (2 Hz 4 mm; 1 Hz 3 A), Fig. 9 (Bouc-Wen)."""
     name = _best_hyperbolic(rr)
     sets = []
@@ -136,12 +138,12 @@ def fig7_8_9(out: Path, rr: RunResult) -> None:
         fig, ax = plt.subplots(1, 2, figsize=(10, 4))
         if _loops(ax, rr, ident, conds, label):
             fig.suptitle(f"{title} ({ident})")
-            _save(fig, out / fname, rr.synthetic)
+            _save(fig, out / fname, rr.synthetic, files)
         else:
             plt.close(fig)
 
 
-def fig10_11(out: Path, rr: RunResult) -> None:
+def fig10_11(out: Path, rr: RunResult, files: FigureFiles = PNG_ONLY) -> None:
     """RMS error (Fig. 10) and run time (Fig. 11) per condition, every identifier side by side."""
     conds = list(rr.data)
     labels = [f"{c[0]:g}Hz {c[1]:g}mm {c[2]:g}A" for c in conds]
@@ -168,10 +170,10 @@ def fig10_11(out: Path, rr: RunResult) -> None:
             "Fig. 10: RMS error per condition" if attr == "rms" else "Fig. 11: run time per condition"
         )
         fig.tight_layout()
-        _save(fig, out / fname, rr.synthetic)
+        _save(fig, out / fname, rr.synthetic, files)
 
 
-def fig12(out: Path, rr: RunResult) -> None:
+def fig12(out: Path, rr: RunResult, files: FigureFiles = PNG_ONLY) -> None:
     """Per-current parameter means and the fitted lines of Eq. (13)-(16)."""
     fits = {n: f for n, f in rr.generalized.items() if f.model == "hyperbolic" and f.means}  # joint fits: no means
     if not fits:
@@ -193,13 +195,13 @@ def fig12(out: Path, rr: RunResult) -> None:
     axes[0, 0].legend(fontsize=6)
     fig.suptitle("Fig. 12: parameters vs current with linear fits")
     fig.tight_layout()
-    _save(fig, out / "fig12_params_vs_current.png", rr.synthetic)
+    _save(fig, out / "fig12_params_vs_current.png", rr.synthetic, files)
 
 
-def write_all(out: Path, rr: RunResult, cfg: IdentificationConfig) -> None:
-    """Write every figure that the run's identifiers and conditions allow."""
+def write_all(out: Path, rr: RunResult, cfg: IdentificationConfig, files: FigureFiles = PNG_ONLY) -> None:
+    """Write every figure that the run's identifiers and conditions allow (each a PNG and ``files.formats``)."""
     out.mkdir(parents=True, exist_ok=True)
-    fig6(out, rr)
-    fig7_8_9(out, rr)
-    fig10_11(out, rr)
-    fig12(out, rr)
+    fig6(out, rr, files)
+    fig7_8_9(out, rr, files)
+    fig10_11(out, rr, files)
+    fig12(out, rr, files)

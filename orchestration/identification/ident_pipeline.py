@@ -58,6 +58,7 @@ from mre_common.folder_claim import claim_folder
 from orchestration.identification import ident_report
 from orchestration.identification.ident_config import IdentificationConfig
 from orchestration.identification.ident_result import RunResult
+from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 
 
 def load_records(cfg: IdentificationConfig, base: Path) -> list[ShakeRecord]:
@@ -390,8 +391,10 @@ def run(
     base: Path | None = None,
     map_fn: MapFunction | None = None,
     min_parallel_s: float = PARALLEL_MIN_S,
+    files: FigureFiles = PNG_ONLY,
 ) -> RunResult:
-    """Full run; writes every output into ``out`` (see docs/identification.md).
+    """Full run; writes every output into ``out`` (see docs/identification.md); ``files``: the figures' dpi and
+    vector formats.
 
     ``map_fn``, ``min_parallel_s``: how the conditions are spread (see :func:`identify_all`;
     default in this process).
@@ -442,7 +445,7 @@ def run(
         if cfg["figures"]:
             from orchestration.identification import ident_figures
 
-            ident_figures.write_all(stage / "figures", run_result, cfg)
+            ident_figures.write_all(stage / "figures", run_result, cfg, files)
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise

@@ -436,6 +436,19 @@ def test_cli_runs_refuses_to_overwrite_and_reports(tmp_path):
     assert "hyperbolic-ffoa" in proc.stdout and "hyperbolic-structured" in proc.stdout
     again = _cli(str(cfg), "--out", str(out), "--quiet")
     assert again.returncode == 2 and "exists" in again.stderr and "Traceback" not in again.stderr
+    # --dpi and --format, as the other drawing tools: half the resolution is half the pixels, and an SVG beside
+    import matplotlib.image
+
+    half = tmp_path / "half"
+    proc = _cli(str(cfg), "--out", str(half), "--quiet", "--dpi", "55", "--format", "svg")
+    assert proc.returncode in (0, 1), proc.stderr
+    for name in ("fig6_ffoa_convergence", "fig12_params_vs_current"):
+        full_px = matplotlib.image.imread(out / "figures" / f"{name}.png").shape
+        half_px = matplotlib.image.imread(half / "figures" / f"{name}.png").shape
+        assert abs(half_px[1] - full_px[1] * 55 / 110) <= 1 and abs(half_px[0] - full_px[0] * 55 / 110) <= 1
+        assert (half / "figures" / f"{name}.svg").read_text().lstrip().startswith("<?xml")
+    bad = _cli(str(cfg), "--out", str(tmp_path / "bad"), "--quiet", "--dpi", "0")
+    assert bad.returncode == 2 and "--dpi 0" in bad.stderr and not (tmp_path / "bad").exists()
 
 
 @pytest.mark.slow
