@@ -101,6 +101,8 @@ def variables() -> list[CVariable]:
                   description="stiffness of the stop at x_limit ('stop')", macro="DEFAULT_K_STOP", **par),
         CVariable("c_stop", 19, "Real", unit="N.s/m", start=STOP_DAMPING,
                   description="damping of the stop at x_limit ('stop')", macro="DEFAULT_C_STOP", **par),
+        CVariable("F_off", 20, "Real", "local", "continuous", "N", None,
+                  "the same force at 0 A (F - F_off: the controllable force)"),
     ]
     return out
 

@@ -94,6 +94,7 @@ enum {
     VR_F0, VR_N_ISOLATORS, VR_I_MAX, VR_X_IDENTIFIED, VR_X_LIMIT,
     VR_F,
     VR_BEYOND_RANGE, VR_K_STOP, VR_C_STOP, /* added after F, as in the Python unit */
+    VR_F_OFF, /* the force at 0 A: added last, as in the Python unit */
     N_VR
 };
 
@@ -108,7 +109,7 @@ enum { OUT_IDENTIFIED, OUT_LIMIT, OUT_CURRENT, N_OUT };
 
 /* Everything fmi2GetFMUstate saves: a plain struct, so a state is a copy of it. */
 typedef struct {
-    double real[N_VR];      /* Real variables by value reference (F, n_isolators, beyond_range unused) */
+    double real[N_VR];      /* Real variables by value reference (F, F_off, n_isolators, beyond_range unused) */
     fmi2Integer n_isolators;
     int beyond;             /* BEYOND_* */
     char beyond_text[BEYOND_TEXT_MAX]; /* the String as set (truncated if longer) */
@@ -136,6 +137,7 @@ typedef struct {
 static const char *const VR_NAMES[N_VR] = {
     "x", "v", "i", "k0_0", "k0_1", "c0_0", "c0_1", "alpha_0", "alpha_1", "beta_0", "beta_1",
     "F0", "n_isolators", "i_max", "x_identified", "x_limit", "F", "beyond_range", "k_stop", "c_stop",
+    "F_off",
 };
 
 /* -- logging -------------------------------------------------------------------------- */
@@ -251,10 +253,9 @@ static double clipped_current(const ModelState *s) {
 
 /* Eq. (17) with the beyond_range policy: the same operations in the same order as
  * mre_isolator_core.force_law (inside +-x_identified, or 'extrapolate') and bounded_force_law
- * (beyond it). C's sinh/cosh overflow to +-inf where Python's safe_sinh/safe_cosh give +-inf. */
-static double force(const ModelState *s) {
+ * (beyond it), at the current i (clipped; 0 for F_off). C's sinh/cosh overflow to +-inf where Python's safe_sinh/safe_cosh give +-inf. */
+static double force_at(const ModelState *s, double i) {
     const double *r = s->real;
-    const double i = clipped_current(s);
     const double x = r[VR_X];
     const double v = r[VR_V];
     const double xb = r[VR_X_IDENTIFIED];
@@ -439,7 +440,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     }
     for (k = 0; k < nvr; k++) {
         if (vr[k] == VR_F) {
-            value[k] = force(&inst->s);
+            value[k] = force_at(&inst->s, clipped_current(&inst->s));
+        } else if (vr[k] == VR_F_OFF) {
+            value[k] = force_at(&inst->s, 0.0);
         } else if (vr[k] < N_VR && vr[k] != VR_N_ISOLATORS && vr[k] != VR_BEYOND_RANGE) {
             value[k] = inst->s.real[vr[k]];
         } else {
@@ -491,7 +494,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 /* Inputs may be set until the end; parameters (variability fixed) only before initialization ends. */
 static int settable(Instance *inst, const char *function, fmi2ValueReference vr) {
     const int is_input = vr == VR_X || vr == VR_V || vr == VR_I;
-    if (vr >= N_VR || vr == VR_F) {
+    if (vr >= N_VR || vr == VR_F || vr == VR_F_OFF) {
         log_message(inst, fmi2Error, "%s: value reference %u is not a settable variable", function, vr);
         return 0;
     }

@@ -9,6 +9,14 @@ p(i) = p_0 * i + p_1; delta and n are constant. The default coefficients are SYN
 fitted by this project's identification pipeline to synthetic data generated from the
 paper's Table 1 (components.physics.bouc_wen_core.SYNTHETIC_DEFAULT), not to measurements.
 
+Local variable F_off [N] (recorded when named; `outputs: all` skips it): the force the same
+devices would give at 0 A along the same motion (F - F_off is the force the current controls: the
+benchmark's J6). The model has memory, so F_off has its own
+hysteretic state y_off, advanced every step with the same displacement increment and scheme as y
+but with beta(0), gamma(0); F_off = n * (k(0) x + c(0) v + alpha(0) y_off + F0), plus the same stop.
+At 0 A throughout, F_off equals F exactly. y_off is advanced only once F_off has been read (a run
+that records it reads it at t = 0), so runs that do not ask for it pay nothing.
+
 State: the dimensionless hysteretic variable y (y = 0 at start). ``do_step(t, h)``
 advances y from t to t + h with the inputs held (zero-order hold): the displacement
 increment is v * h, integrated in the displacement domain by the exponential midpoint
@@ -89,6 +97,8 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
         self.c_stop = STOP_DAMPING
         self._failed = ""
         self.y = 0.0
+        self.y_off = 0.0  # y along the same path at 0 A (F_off)
+        self._track_off = False  # F_off has been read: advance y_off
         for name, value in SYNTHETIC_DEFAULT.as_dict().items():
             setattr(self, name, value)
         self._outside = {"identified": False, "limit": False, "current": False}
@@ -96,7 +106,7 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
         self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
         self.fmi_units.update(
             x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m", dx_max="m", y="1",
-            k_stop="N/m", c_stop="N.s/m",
+            k_stop="N/m", c_stop="N.s/m", F_off="N",
         )
         self.fmi_dependencies = {"F": ("x", "v", "i")}
 
@@ -142,6 +152,9 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
                                       "('stop': with the stop at x_limit)", **par))
         self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
         self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
+        self.register_variable(Real("F_off", description="the same force at 0 A along the same motion (F - F_off: "
+                                    "the controllable force)", causality=Fmi2Causality.local,
+                                    variability=Fmi2Variability.continuous, getter=self._force_off))
         # The master exchanges the same value references every step: fast paths for them (fast_exchange).
         self.exchange_fast(inputs=("x", "v", "i"), outputs=("F",))
 
@@ -150,11 +163,17 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
         return min(max(self.i, 0.0), self.i_max)
 
     def _force(self) -> float:
-        i = self._current()
+        return self._force_at(self._current(), self.y)
+
+    def _force_off(self) -> float:
+        self._track_off = True
+        return self._force_at(0.0, self.y_off)
+
+    def _force_at(self, i: float, y: float) -> float:
         k = self.k_0 * i + self.k_1
         c = self.c_0 * i + self.c_1
         alpha = self.alpha_0 * i + self.alpha_1
-        force = self.n_isolators * (k * self.x + c * self.v + alpha * self.y + self.F0)
+        force = self.n_isolators * (k * self.x + c * self.v + alpha * y + self.F0)
         if self.beyond_range == "stop" and abs(self.x) > self.x_limit:
             force += stop_contact(self.x, self.v, self.x_limit, self.k_stop, self.c_stop)
         return force
@@ -220,7 +239,16 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
             if not math.isfinite(y):
                 self.log(f"hysteretic state became {y} at t = {t:.6g} s", Fmi2Status.error)
                 return False
+            same = i == 0.0 and self.y_off == self.y  # at 0 A on the same state: the same step, not computed twice
             self.y = y
+            if not self._track_off:
+                return True
+            y_off = y if same else float(bouc_wen_advance(self.y_off, dx, self.beta_1, self.gamma_1, self.delta,
+                                                          self.n, self.dx_max))
+            if not math.isfinite(y_off):
+                self.log(f"hysteretic state at 0 A (F_off) became {y_off} at t = {t:.6g} s", Fmi2Status.error)
+                return False
+            self.y_off = y_off
         return True
 
     # FMU state (fmi2GetFMUstate/fmi2SetFMUstate): every instance attribute the shell added

@@ -2,7 +2,10 @@
 
 Inputs x [m], v [m/s], i [A]; output F [N], the total restoring force of
 ``n_isolators`` devices. F is direct feedthrough: it is evaluated from the inputs set
-at the current communication point whenever it is read. The unit has no state.
+at the current communication point whenever it is read. The unit has no state. Local variable
+F_off [N] (recorded when a scenario names it; not an output, so `outputs: all` skips it): the
+force the same devices give at 0 A at the same x and v (F - F_off is the force the current
+controls: the benchmark's J6).
 
 Range policy: |x| beyond the identified +-8 mm range and beyond the device's 15 mm
 limit each log one fmi2Warning when entered; a current outside [0, i_max] logs an
@@ -78,7 +81,7 @@ class MreIsolator(FastExchange, Fmi2Slave):
         self.fmi_units = {name: unit for name, (unit, _) in _COEFFICIENTS.items()}
         self.fmi_units.update(
             x="m", v="m/s", i="A", F="N", F0="N", i_max="A", x_identified="m", x_limit="m", k_stop="N/m",
-            c_stop="N.s/m",
+            c_stop="N.s/m", F_off="N",
         )
         self.fmi_dependencies = {"F": ("x", "v", "i")}
 
@@ -112,6 +115,9 @@ class MreIsolator(FastExchange, Fmi2Slave):
         self.register_variable(String("beyond_range", description=f"{choices}: the law beyond x_identified", **par))
         self.register_variable(Real("k_stop", description="stiffness of the stop at x_limit ('stop')", **par))
         self.register_variable(Real("c_stop", description="damping of the stop at x_limit ('stop')", **par))
+        self.register_variable(Real("F_off", description="the same force at 0 A (F - F_off: the controllable force)",
+                                    causality=Fmi2Causality.local, variability=Fmi2Variability.continuous,
+                                    getter=self._force_off))
         # The master exchanges the same value references every step: fast paths for them (fast_exchange).
         self.exchange_fast(inputs=("x", "v", "i"), outputs=("F",))
 
@@ -131,12 +137,20 @@ class MreIsolator(FastExchange, Fmi2Slave):
     def _force(self) -> float:
         if self._law is not None:
             return self._law(self.x, self.v, min(max(self.i, 0.0), self.i_max))
+        return self._force_at(self._current())
+
+    def _force_at(self, i: float) -> float:
+        if self._law is not None:
+            return self._law(self.x, self.v, i)
         if self._failed:
             return math.nan
         try:
-            return self._make_law()(self.x, self.v, self._current())
+            return self._make_law()(self.x, self.v, i)
         except ValueError:
             return math.nan  # reported when initialization ends
+
+    def _force_off(self) -> float:
+        return self._force_at(0.0)
 
     _exchanged_value = _force  # the fast output (fast_exchange)
 

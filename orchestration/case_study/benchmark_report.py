@@ -1,7 +1,7 @@
 """The controller benchmark's outputs (a study with a ``benchmark`` section): criteria.csv and report sections.
 
-``criteria.csv``: record, strategy, J1...J9 (over the baseline, passive-off by default), mean_current_A,
-joule_A2s, switching_rate_A_s; ``criteria_<second baseline>.csv``: the same normalised by the second
+``criteria.csv``: record, strategy, J1...J9 (over the baseline, passive-off by default; J6 over passive-on's),
+mean_current_A, joule_A2s, switching_rate_A_s; ``criteria_<second baseline>.csv``: the same normalised by the second
 baseline (passive-on: passive-off drives the isolator beyond its identified ±8 mm range, so ratios
 to it flatter every controller). Criteria: :mod:`orchestration.case_study.benchmark_criteria`
 (Narasimhan et al. 2006). The report gets a ranking per record, a Pareto plot of J3 against J5 with
@@ -19,14 +19,24 @@ from typing import Any
 import numpy as np
 
 from mre_common.atomic_files import atomic_write_text
-from orchestration.case_study.benchmark_criteria import CRITERIA, EFFORT, NAMES, effort, normalised, raw_criteria
+from orchestration.case_study.benchmark_criteria import (
+    CRITERIA,
+    EFFORT,
+    J6_REFERENCE,
+    NAMES,
+    effort,
+    normalised,
+    raw_criteria,
+)
 from orchestration.case_study.case_figures import save
 from orchestration.case_study.case_metrics import pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.case_rendering import TIE, Block, fmt
 from orchestration.master.figure_files import PNG_ONLY, FigureFiles
 
-RANKED = ("J1", "J2", "J3", "J4", "J5", "J6", "J7", "J8")  # the ranking's mean: every lower-is-better criterion
+# the ranking's mean: every lower-is-better criterion but J6, shown apart (it measures the control a strategy uses,
+# not the response: passive-off's is 0 and would win it)
+RANKED = ("J1", "J2", "J3", "J4", "J5", "J7", "J8")
 EXTRA = ("J9_raw", "energy_error")  # J9's raw share E_d / E_in; the coupling's energy error, a fraction of E_in
 Rows = list[dict[str, Any]]
 
@@ -60,15 +70,15 @@ def criteria_rows(study: CaseStudyRecord, raw: dict[tuple[str, str], dict[str, f
     rows = []
     entries = _entries(study)
     for r in study.records:
-        base = raw.get((r, baseline), {})
+        base, j6_reference = raw.get((r, baseline), {}), raw.get((r, J6_REFERENCE), {})
         for s in study.strategies:
             if (r, s) in raw:
                 v = raw[(r, s)]
                 entry = entries.get((r, s))
                 valid = None if entry is None else entry.valid
                 reasons = list(entry.invalid_reasons) if entry is not None else []
-                rows.append({"record": r, "strategy": s, **normalised(v, base), **{k: v[k] for k in EFFORT},
-                             **{k: v[k] for k in EXTRA}, "valid": valid,
+                rows.append({"record": r, "strategy": s, **normalised(v, base, j6_reference),
+                             **{k: v[k] for k in EFFORT}, **{k: v[k] for k in EXTRA}, "valid": valid,
                              "invalid_reasons": "; ".join(reasons) if valid is not None else None})
     return rows
 
@@ -91,7 +101,8 @@ def ranked_rows(rows: Rows) -> Rows:
 
 
 def ranking(rows: Rows, record: str) -> list[tuple[str, float]]:
-    """Valid strategies on a record by the mean of J1...J8 (lower is better; NaN last); invalid rows are left out."""
+    """Valid strategies on a record by the mean of J1...J5, J7, J8 (lower is better; NaN last); invalid rows are
+    left out."""
     scores = [(row["strategy"], float(np.mean([row[k] for k in RANKED]))) for row in ranked_rows(rows)
               if row["record"] == record]
     return sorted(scores, key=lambda x: (not math.isfinite(x[1]), x[1]))
@@ -155,8 +166,8 @@ def step_criteria_changes(folder: Path, study: CaseStudyRecord, raw: dict[tuple[
 
 
 def with_step_changes(rows: Rows, changes: dict[tuple[str, str], dict[str, float]]) -> Rows:
-    """Rows with each run's criteria changes at half the step (``step_changes``) and the largest over J1...J8
-    (``step_change``, a column of criteria.csv), where the step was verified."""
+    """Rows with each run's criteria changes at half the step (``step_changes``) and the largest over the ranked
+    criteria (``step_change``, a column of criteria.csv), where the step was verified."""
     if not changes:
         return rows
     for row in rows:
@@ -262,15 +273,17 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
     rows = with_step_changes(criteria_rows(study, raw, baseline), changes)
     atomic_write_text(folder / "criteria.csv", csv_text(rows))
     blocks = [Block("h", "Controller benchmark (Narasimhan et al. 2006 criteria)"),
-              Block("p", "J1…J9 are each strategy's value over the baseline's on the same record (lower is better; "
+              Block("p", "J1…J9 are each strategy's value over the baseline's on the same record, J6 (the peak "
+                         f"force the current controls, F − F at 0 A) over {J6_REFERENCE}'s (lower is better; "
                          "J9, the share of the ground's input energy the isolators take, higher means more of it; "
                          "from each run's energy balance, summary.json `energy`: J9_raw is the share itself, "
                          "energy_error the coupling's energy error as a fraction of the input energy). "
                          + "; ".join(f"{k}: {v}" for k, v in NAMES.items()) + ". Definitions, in SI: "
                          "`orchestration/case_study/benchmark_criteria.py`, docs/controllers.md."),
               Block("h", "Ranking per record", level=3),
-              Block("p", f"By the mean of J1…J8 over **{baseline}**, lower first (the mean weighs each criterion "
-                         "by the baseline's value, so another baseline can reorder close strategies).")]
+              Block("p", f"By the mean of J1…J5, J7 and J8 over **{baseline}**, lower first (the mean weighs each "
+                         "criterion by the baseline's value, so another baseline can reorder close strategies; J6, "
+                         "the control force used, is shown apart: passive-off's is zero).")]
     for r in records:
         ranked = ranking(rows, r)
         left_out = [row for row in rows if row["record"] == r and row.get("valid") is False]

@@ -20,8 +20,10 @@ from orchestration.building_studies.run_settings import RECORDED
 
 OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 # A controller benchmark records the floors' velocities too (the input energy of its criterion J9).
+# And the isolator's force at 0 A along the same motion (J6), where the isolator FMU gives it (case_plan.plan_cosim).
+FORCE_OFF_OUTPUT = "isolator.F_off"
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
-                                                       "ground.ag")) + "]")
+                                                       "ground.ag", FORCE_OFF_OUTPUT)) + "]")
 # The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key): every
 # project module this one imports, directly or through others, also inside the job functions (code_sources).
 CODE_SOURCES = ("module:orchestration.case_study.case_jobs",)

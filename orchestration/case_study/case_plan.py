@@ -121,6 +121,18 @@ def run_strategy_overrides(study: LoadedStudy, strategy: str, scenario: Path, i_
     return (*s.overrides(i_max, gains, best), *wiring)
 
 
+def plan_cosim(study: LoadedStudy, label: str, overrides: tuple[str, ...], outputs: str) -> PlannedJob:
+    """A co-simulation job recording ``outputs`` (an ``outputs=[...]`` override, last); the isolator's ``F_off``
+    among them only where the isolator FMU has it (an isolator from another tool may not: its J6 is then NaN)."""
+    try:
+        return plan_job(study, label, "cosim", (*overrides, outputs), {})
+    except ScenarioError as exc:
+        name = case_jobs.FORCE_OFF_OUTPUT
+        if name not in outputs or not any(name in p.message for p in exc.problems):
+            raise
+    return plan_job(study, label, "cosim", (*overrides, outputs.replace(f", {name}", "")), {})
+
+
 def plan_job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]
              ) -> PlannedJob:
     """Label, content key, portable plan and payload inputs of one job (label ``record/...``)."""

@@ -53,7 +53,7 @@ from orchestration.case_study.case_jobs import (
     reference_job,
     sweep_job,
 )
-from orchestration.case_study.case_plan import PlannedJob, plan_job, prepare, run_strategy_overrides
+from orchestration.case_study.case_plan import PlannedJob, plan_cosim, plan_job, prepare, run_strategy_overrides
 from orchestration.case_study.case_records import (
     CaseStudyRecord,
     PreparedStudy,
@@ -287,8 +287,7 @@ def plan_run(study: LoadedStudy, runner: JobRunner, entry: RunEntry, outputs: st
         extra = (*extra, *planner.overrides(r, entry.variant, extra))
     entry.current_A = strategy.constant_current(spec.i_max, best)
     entry.overrides = list(extra)
-    return plan_job(study, entry.key, "cosim", (*strategy.common(run_overrides(spec)), *extra,
-                                                strategy.recorded(outputs)), {})
+    return plan_cosim(study, entry.key, (*strategy.common(run_overrides(spec)), *extra), strategy.recorded(outputs))
 
 
 def longest_first(record: CaseStudyRecord) -> list[str]:
@@ -349,9 +348,8 @@ def plan_half_step_runs(study: LoadedStudy, runner: JobRunner, runs: list[Planne
         outputs = OUTPUTS_OVERRIDE if study.spec.benchmark is None else BENCHMARK_OUTPUTS_OVERRIDE
         strategy = study.strategy(entry.strategy)
         try:
-            jobs.append(plan_job(study, half.key, "cosim", (*strategy.common(run_overrides(study.spec)),
-                                                           *(entry.overrides or []), strategy.recorded(outputs),
-                                                           *extra), {}))
+            jobs.append(plan_cosim(study, half.key, (*strategy.common(run_overrides(study.spec)),
+                                                     *(entry.overrides or []), *extra), strategy.recorded(outputs)))
         except ScenarioError as exc:  # e.g. a controller that cannot step at its own rate: this check only fails
             half.error = f"the half-step run cannot be made: {exc}"
             runner.done(JobResult(half.key, False, error=half.error, status="failed"), stored=True)

@@ -25,6 +25,7 @@ def _series() -> dict[str, np.ndarray]:
         "building.drift_1": 0.001 * s, "building.drift_2": 0.004 * c, "building.drift_3": 0.002 * s,
         "building.shear_1": 700.0 * c,
         "isolator.F": 500.0 * 0.01 * W * c,  # a pure damper, c = 500 N s/m
+        "isolator.F_off": 300.0 * 0.01 * W * c,  # at 0 A: c = 300 N s/m
         "ground.ag": -4.0 * c,
         "controller.i": 1.0 + 0.5 * s,
     }
@@ -38,7 +39,7 @@ def test_raw_criteria_of_sines() -> None:
     assert j["J3"] == pytest.approx(0.01)
     assert j["J4"] == pytest.approx(0.004)
     assert j["J5"] == pytest.approx(3.0)  # floors 1..3 only: a_0 is the base
-    assert j["J6"] == pytest.approx(500 * 0.01 * W)
+    assert j["J6"] == pytest.approx(200 * 0.01 * W)  # the controllable part: (500 - 300) N s/m times peak v
     assert j["J7"] == pytest.approx(0.01 / math.sqrt(2), rel=1e-9)
     assert j["J8"] == pytest.approx(3.0 / math.sqrt(2), rel=1e-9)
     assert math.isnan(j["J9"])  # J9 comes from the run's energy section, not from the sampled series
@@ -69,3 +70,17 @@ def test_rms_and_normalised() -> None:
 def test_masses_must_match_the_levels() -> None:
     with pytest.raises(ValueError, match="3 masses for 4 levels"):
         raw_criteria(_series(), MASSES[:3])
+
+
+def test_j6_is_the_controllable_force_over_the_reference() -> None:
+    """J6 = max|F - F_off|, NaN without F_off (an isolator that does not give it), and normalised by the J6
+    reference's value (passive-on's), not by the baseline's (passive-off's is zero)."""
+    series = _series()
+    series["isolator.F_off"] = series["isolator.F"].copy()  # 0 A throughout: nothing controlled
+    assert raw_criteria(series, MASSES)["J6"] == 0.0
+    del series["isolator.F_off"]
+    assert math.isnan(raw_criteria(series, MASSES)["J6"])
+    n = normalised({"J1": 2.0, "J6": 3.0}, {"J1": 4.0, "J6": 0.0}, {"J1": 100.0, "J6": 6.0})
+    assert n["J1"] == pytest.approx(0.5)  # the baseline's
+    assert n["J6"] == pytest.approx(0.5)  # the J6 reference's
+    assert math.isnan(normalised({"J6": 3.0}, {"J6": 1.0})["J6"])  # no reference run: not over the baseline
