@@ -394,8 +394,11 @@ class _Resolution:
     def _fmu_file_problem(self, path: Path) -> str | None:
         if "\x00" in str(path):  # no file can have this name (and the OS calls would raise ValueError)
             return f"{str(path)!r} holds a NUL character (\\0): no file has such a name"
-        if path.is_symlink() and not path.exists():
-            return f"{path}: a symbolic link to nothing (dangling or looping)"
+        try:
+            if path.is_symlink() and not path.exists():
+                return f"{path}: a symbolic link to nothing (dangling or looping)"
+        except OSError as exc:  # a name the file system refuses, e.g. longer than it allows
+            return f"{str(path)[:200]}{'...' if len(str(path)) > 200 else ''}: not a usable file name ({exc.strerror})"
         return _prepare(path, self.hooks)
 
     # -- parameters -------------------------------------------------------------------------------------

@@ -406,3 +406,15 @@ def test_structure_problems_of_the_root_and_of_fmi3_references(tmp_path):
     assert structure_problem(_fmu_with_description(tmp_path, fmi3.format(ref=7))) is None
     text = structure_problem(_fmu_with_description(tmp_path, fmi3.format(ref=8)))
     assert text is not None and 'valueReference="8"> (line 1) points at no variable' in text and "there are" not in text
+
+
+def test_an_fmu_name_longer_than_the_file_system_allows_is_a_scenario_error(tmp_path, capsys):
+    """A name the OS refuses (ENAMETOOLONG) is exit 2 naming the key, not an internal error (found by
+    test_reliability's property test)."""
+    from orchestration.run import main
+
+    code = main([str(PROJECT / "scenarios" / "elcentro.yaml"), "--set", "units.building.fmu=" + "A" * 300,
+                 "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "units.building.fmu" in err and "not a usable file name" in err
+    assert not (tmp_path / "out").exists()

@@ -158,7 +158,8 @@ def test_tiny_benchmark_end_to_end(tmp_path: Path) -> None:
         assert float(r["J5"]) == pytest.approx(j5, rel=1e-9)
         assert math.isfinite(float(r["J9"]))
         if r["strategy"] == "passive-off":
-            assert all(float(r[f"J{k}"]) == 1.0 for k in range(1, 10))
+            assert all(float(r[f"J{k}"]) == 1.0 for k in (1, 2, 3, 4, 5, 7, 8, 9))
+            assert math.isnan(float(r["J6"]))  # J6 is over passive-on's, which this study does not run
             assert float(r["mean_current_A"]) == 0.0 and float(r["switching_rate_A_s"]) == 0.0
         if r["strategy"] == "best-constant":
             assert float(r["switching_rate_A_s"]) == 0.0 and 0.0 <= float(r["mean_current_A"]) <= 3.0
