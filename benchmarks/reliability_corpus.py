@@ -718,6 +718,11 @@ def other_tool_cases() -> list[Case]:
                     ["id.yaml", "--out", ".", "--overwrite", "--no-progress"], _id_config, out=None))
     out.append(Case("other tools: identify", "--out is a file", "identify.py",
                     ["id.yaml", "--out", PRECIOUS, "--no-progress"], _id_config, out=None))
+    for name, args in (("--dpi nan", ["--dpi", "nan"]), ("--dpi 0", ["--dpi", "0"]), ("--dpi -5", ["--dpi", "-5"]),
+                       ("--dpi of 10^30", ["--dpi", "1" + "0" * 30]), ("--format png", ["--format", "png"]),
+                       ("--format ../x", ["--format", "../x"])):
+        out.append(Case("other tools: identify", name, "identify.py",
+                        ["id.yaml", "--out", "out", "--no-progress", *args], _id_config))
     for name, argv in (("export to a folder", ["export", str(SC / "elcentro.yaml"), "."]),
                        ("export over a file", ["export", str(SC / "elcentro.yaml"), PRECIOUS]),
                        ("export below a file", ["export", str(SC / "elcentro.yaml"), f"{PRECIOUS}/x.ssp"]),
