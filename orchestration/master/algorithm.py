@@ -48,7 +48,8 @@ single-rate one (docs/master.md, "Multi-rate stepping").
 Every step ends with *feedthrough propagation*: outputs that depend directly on connected
 inputs are re-evaluated level by level with the end-of-step values, so all values at
 t + h are consistent with each other (e.g. a force computed from the displacement at
-t + h, not at t).
+t + h, not at t). Watched ``local`` variables, whose dependencies FMI 2.0 does not declare, are
+read last, after their unit's connected inputs are set to their end-of-step values.
 """
 
 from __future__ import annotations
@@ -417,7 +418,56 @@ class CouplingAlgorithm:
                     self._typed_transfers(unit, typed_outs, [False] * len(typed_outs)),
                     np.asarray(rules, dtype=np.intp) if real_ins else None,
                 ))
+        return self._plan_local_reads(plan)
+
+    def _plan_local_reads(self, plan: list[_PropagationStep]) -> list[_PropagationStep]:
+        """``plan`` with the watched locals read last, after their unit's connected inputs carry their end-of-step
+        values: in the unit's last propagation step when that one sets all of them, else in a step of their own.
+
+        FMI 2.0 declares no dependencies for a local variable, so it may depend on every input (the isolators'
+        F_off does, like their F). Read right after the step, it would pair the state at t + h with the inputs
+        the step used (the step means); read here, it is consistent with the outputs at t + h.
+        """
+        plan = list(plan)
+        for name, unit in self.units.items():
+            local = [p for p in self.slot if p[0] == name and p in self._real_ports
+                     and self._desc[name].variables[p[1]].causality == "local"]
+            typed_local = [p for p in self.typed_slot if p[0] == name
+                           and self._desc[name].variables[p[1]].causality == "local"]
+            if not local and not typed_local:
+                continue
+            ins = [link.target for link in self.links if link.target[0] == name and not link.delayed]
+            real_ins = [i for i in ins if self._source[i] in self._real_ports]
+            typed_ins = [i for i in ins if self._source[i] in self.typed_slot]
+            last = max((k for k, p in enumerate(plan) if self._step_unit(p) == name), default=None)
+            if last is not None and not typed_local and self._sets_all(plan[last], real_ins, typed_ins):
+                outs = [] if plan[last].real_get is None else self._ports_of(plan[last].real_get)
+                plan[last].real_get = self._transfer(unit, outs + local, [self.slot[p] for p in outs + local])
+                continue
+            rules = [RULES.index("grid" if self._link_rule.get(i) == "grid" else "fresh") for i in real_ins]
+            plan.append(_PropagationStep(
+                self._transfer(unit, real_ins, [self.slot[self._source[i]] for i in real_ins]) if real_ins else None,
+                self._typed_transfers(unit, typed_ins, [True] * len(typed_ins), [self._source[i] for i in typed_ins]),
+                self._transfer(unit, local, [self.slot[p] for p in local]) if local else None,
+                self._typed_transfers(unit, typed_local, [False] * len(typed_local)),
+                np.asarray(rules, dtype=np.intp) if real_ins else None,
+            ))
         return plan
+
+    @staticmethod
+    def _step_unit(p: _PropagationStep) -> str:
+        return (p.real_set or p.real_get or (p.typed_set or p.typed_get)[0]).unit.name
+
+    def _ports_of(self, tr: _Transfer) -> list[Port]:
+        port_of = {k: p for p, k in self.slot.items()}
+        return [port_of[k] for k in tr.slots.tolist()]
+
+    def _sets_all(self, p: _PropagationStep, real_ins: list[Port], typed_ins: list[Port]) -> bool:
+        """Whether propagation step ``p`` sets every one of a unit's connected Real and typed inputs."""
+        real_set = set() if p.real_set is None else set(p.real_set.slots.tolist())
+        typed_set = {port for tr in p.typed_set for port in tr.ports}
+        return (real_set == {self.slot[self._source[i]] for i in real_ins}
+                and typed_set == set(typed_ins))
 
     # -- phases ------------------------------------------------------------------------------------
     def _set_inputs(self, plan: _InputPlan) -> None:
@@ -687,7 +737,7 @@ class CouplingAlgorithm:
         """Feedthrough propagation: per level and unit, its inputs from the end-of-step values, its outputs re-read."""
         ops: list[ProgramOp] = []
         for p in self._propagation:
-            name = (p.real_set or p.real_get or (p.typed_set or p.typed_get)[0]).unit.name
+            name = self._step_unit(p)
             when = self._timing(name, at_end=True)
             if p.real_set is not None:
                 ops.append(ProgramOp("set", p.real_set.unit, p.real_set.handle, p.real_set.slots, p.set_rules, **when))

@@ -84,6 +84,33 @@ def test_feedthrough_outputs_are_consistent_at_every_communication_point():
             assert rec.column("gain.w").tolist() == [2 * y for y in rec.column("clock.y")]
 
 
+@pytest.mark.parametrize("scheme", ["gauss-seidel", "jacobi"])
+def test_a_watched_local_is_read_with_the_end_of_step_inputs(scheme):
+    """A local (FMI 2.0 declares no dependencies for it) that depends on an input, q = 3 u, recorded beside a
+    feedthrough output w = 2 u and beside a state unit's local p = u: both equal the law at y(t) at every
+    communication point, although the step held the step mean of y (the isolators' F_off beside F)."""
+    links = [Link(("clock", "y"), ("gain", "u")), Link(("clock", "y"), ("sampler", "u"))]
+    calls: list = []
+    feedthrough = FakeUnit("gain", ["u"], ["w"], lambda s, i: {"w": 2 * i["u"], "q": 3 * i["u"]},
+                           dependencies={"w": ("u",)}, local=["q"], calls=calls)
+    state = FakeUnit("sampler", ["u"], ["z"], lambda s, i: {"z": s["z"], "p": i["u"]},
+                     lambda s, i, t, h: {"z": i["u"]}, state={"z": -1.0}, local=["p"])
+    watched = [("clock", "y"), ("gain", "w"), ("gain", "q"), ("sampler", "p")]
+    _, rec, _ = run([feedthrough, state, clock()], links, scheme, watched=watched, inputs="step-mean")
+    y = rec.column("clock.y").tolist()
+    assert y == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert rec.column("gain.w").tolist() == [2 * v for v in y]
+    assert rec.column("gain.q").tolist() == [3 * v for v in y]
+    assert rec.column("sampler.p").tolist() == y
+    # the gain's propagation sets all its inputs: q is read there with w, at no extra set
+    assert [c for c in calls if c[0] == "get"][-1] == ("get", "gain", ("w", "q"))
+    without: list = []
+    plain = FakeUnit("gain", ["u"], ["w"], lambda s, i: {"w": 2 * i["u"], "q": 3 * i["u"]},
+                     dependencies={"w": ("u",)}, local=["q"], calls=without)
+    run([plain, clock()], links[:1], scheme, watched=[("gain", "w")], inputs="step-mean")
+    assert sum(c[0] == "set" for c in calls) == sum(c[0] == "set" for c in without)
+
+
 def test_propagation_levels_chain_feedthrough_units():
     units = [clock("c"), gain("g1"), gain("g2", k=3.0)]
     links = [Link(("c", "y"), ("g1", "u")), Link(("g1", "w"), ("g2", "u"))]

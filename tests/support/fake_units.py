@@ -18,7 +18,8 @@ class FakeUnit:
     Variables are Real unless ``types`` names another FMI type for them (``Integer``,
     ``Boolean``, ``String``, ``Int64``, ...); those are read and set through ``get_values``/
     ``set_values``, which check the type the master passes. ``discrete`` names Real outputs of
-    discrete variability.
+    discrete variability; ``local`` names Real local variables (``outputs_fn`` gives them too, no
+    dependencies declared, as FMI 2.0 locals).
     """
 
     def __init__(
@@ -34,6 +35,7 @@ class FakeUnit:
         fail_at: float | None = None,
         types: dict[str, str] | None = None,
         discrete: Sequence[str] = (),
+        local: Sequence[str] = (),
     ) -> None:
         self.name = name
         types = dict(types or {})
@@ -46,6 +48,8 @@ class FakeUnit:
             t = types.get(n, "Real")
             continuous = t == "Real" and n not in discrete
             variables[n] = Variable(n, k, t, "output", "continuous" if continuous else "discrete", declared_type=t)
+        for k, n in enumerate(local, start=len(inputs) + len(outputs)):
+            variables[n] = Variable(n, k, "Real", "local", "continuous", declared_type="Real")
         deps = dependencies if dependencies is not None else {o: () for o in outputs}
         self.description = UnitDescription(name, variables, deps)
         self._by_vr = {v.vr: v.name for v in variables.values()}
