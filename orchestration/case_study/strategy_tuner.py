@@ -407,8 +407,8 @@ def tuned_entry(target: Target, result: dict[str, Any], study: LoadedStudy, out:
         near = Path(os.path.commonpath([s.fmu_path, folder])) != Path(folder.anchor)
         doc["fmu"] = os.path.relpath(s.fmu_path, folder) if near else str(s.fmu_path)
     doc["tuned"] = {
-        "from": f"{s.name} ({s.file})", "study": str(study.path), "records": tuning.records,
-        "scenarios": {r: str(study.scenario_path(r)) for r in tuning.records},
+        "from": f"{s.name} ({shown_path(s.file)})", "study": shown_path(study.path), "records": tuning.records,
+        "scenarios": {r: shown_path(study.scenario_path(r)) for r in tuning.records},
         "stop_time_s": tuning.stop_time, "objective": study.spec.objective.model_dump(),
         "J": result["J"], "J_start": result["J_start"], "budget": tuning.budget, "evaluations": result["evaluations"],
         "population": result["population"], "generations": result["generations"],
@@ -424,11 +424,18 @@ def tuned_entry(target: Target, result: dict[str, Any], study: LoadedStudy, out:
     return doc
 
 
+def shown_path(path: str | os.PathLike[str]) -> str:
+    """A path as a tuned file records it: relative to the current folder when it lies below it (a checkout
+    run from its root records ``scenarios/...``, the same on every machine), else absolute."""
+    resolved, here = Path(path).resolve(), Path.cwd().resolve()
+    return resolved.relative_to(here).as_posix() if resolved.is_relative_to(here) else str(resolved)
+
+
 def tuned_document(study: LoadedStudy, entries: dict[str, dict[str, Any]]) -> str:
     """YAML text of the tuned strategy file: one entry ``<name>-tuned`` per tuned strategy."""
     head = ("# Strategies tuned by orchestration/case_study/strategy_tuner.py (docs/controllers.md, \"Tuning every "
             "strategy alike\"); do not edit by hand.\n"
-            f"# Reproduce: python orchestration/tune.py {study.path} --force\n"
+            f"# Reproduce: python orchestration/tune.py {shown_path(study.path)} --force\n"
             "# Use: strategy_files: [this file] in a study, and list <name>-tuned under strategies.\n")
     doc = {"description": f"strategies tuned alike on {', '.join(_tuning(study).records)} ({study.path.name})",
            "strategies": {f"{name}-tuned": e for name, e in entries.items()}}

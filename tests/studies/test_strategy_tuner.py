@@ -204,3 +204,15 @@ def test_tune_on_off_briefly_and_run_the_tuned_entry(tmp_path: Path) -> None:
     plan = plan_scenario(SCENARIOS / "elcentro.yaml", overrides)
     assert plan.parameters["controller"]["i_high"] == entry.parameters["i_high"]
     assert run_plan(plan, tmp_path / "run", plots=False, progress=False).result.complete
+
+
+def test_a_tuned_file_records_paths_below_the_current_folder_relative(tmp_path: Path, monkeypatch) -> None:
+    """What a checkout run from its root ships (``scenarios/...``) is the same on every machine; a path elsewhere
+    stays absolute, so the record still finds it."""
+    from orchestration.case_study.strategy_tuner import shown_path
+
+    (tmp_path / "project" / "scenarios").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "project")
+    assert shown_path(tmp_path / "project" / "scenarios" / "a.yaml") == "scenarios/a.yaml"
+    assert shown_path("scenarios/../scenarios/a.yaml") == "scenarios/a.yaml"
+    assert shown_path(tmp_path / "elsewhere.yaml") == str((tmp_path / "elsewhere.yaml").resolve())
