@@ -260,9 +260,19 @@ class StudySpec(_Strict):
         if self.robustness is not None and self.benchmark is None:
             raise ValueError("robustness needs a benchmark section (its criteria are normalised by the benchmark's "
                              "baseline)")
+        unknown = [s for s in (self.robustness.strategies or []) if s not in self.strategies] if self.robustness else []
+        if unknown:
+            raise ValueError(f"robustness.strategies: {', '.join(map(repr, unknown))} not among the study's strategies "
+                             f"({', '.join(self.strategies)})")
         if self.fig15.i_max > self.i_max:
             raise ValueError(f"fig15.i_max ({self.fig15.i_max} A) must not exceed i_max ({self.i_max} A)")
         return self
+
+
+def variant_strategies(spec: StudySpec) -> list[str]:
+    """The strategies that run under the robustness variants: ``robustness.strategies``, else all the study's."""
+    rob = spec.robustness
+    return [] if rob is None else list(rob.strategies) if rob.strategies is not None else list(spec.strategies)
 
 
 class LoadedStudy:
@@ -392,7 +402,7 @@ def folder_name_problems(study: LoadedStudy) -> list[Problem]:
             add(f"strategy {problem}", "strategies", k)
     if out:
         return out
-    variants = [""] + [f"--{v}" for v in (spec.robustness.variants if spec.robustness else {})]
+    variants = [""] + [f"--{v}" for v in (spec.robustness.variant_names() if spec.robustness else [])]
     longest = max(variants, key=lambda v: len(os.fsencode(v)))
     folder = Path(spec.output)
     for r in spec.records:

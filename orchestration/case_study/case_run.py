@@ -41,7 +41,7 @@ from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.building_studies.run_settings import run_overrides
 from orchestration.building_studies.study_file import key_files
 from orchestration.case_study import case_jobs
-from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study
+from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study, variant_strategies
 from orchestration.case_study.case_figures import STUDY_DPI
 from orchestration.case_study.case_jobs import (
     BENCHMARK_OUTPUTS_OVERRIDE,
@@ -152,9 +152,9 @@ def count_jobs(spec: StudySpec, verify: bool = True, verify_step: bool = False) 
     n = len(spec.records)
     references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
     references *= verify
-    n_variants = len(spec.robustness.variants) if spec.robustness is not None else 0
-    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + n_variants + verify_step)
-            + n * references)
+    n_variants = len(spec.robustness.variant_names()) if spec.robustness is not None else 0
+    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + verify_step)
+            + n * len(variant_strategies(spec)) * n_variants + n * references)
 
 
 class JobRunner:
@@ -321,11 +321,15 @@ def plan_variant_runs(study: LoadedStudy, runner: JobRunner) -> list[PlannedJob]
     spec, record = study.spec, runner.record
     if not variants(study):
         return []
+    if spec.robustness is not None and spec.robustness.plant_samples is not None:
+        from orchestration.case_study.plant_uncertainty import write_design
+
+        write_design(runner.folder, study)
     planner = VariantPlanner(study, run_overrides(spec))
     jobs = []
     for r in longest_first(record):
         for v in variants(study):
-            for s in spec.strategies:
+            for s in variant_strategies(spec):
                 entry = RunEntry(f"{r}/{s}/{v}", r, s, f"runs/{r}-{s}--{v}", variant=v)
                 record.variant_runs.append(entry)
                 if (job := plan_run(study, runner, entry, BENCHMARK_OUTPUTS_OVERRIDE, planner)) is not None:

@@ -27,8 +27,17 @@ robustness:
   signal (``unit.variable`` -> RMS in that variable's SI unit; when any is given, every signal a strategy
   reads needs one) and ``delay`` whole communication steps. A delay of 0 without noise is refused (an exact
   pass-through). ``seed`` is an FMI Integer (int32): 0 ... 2**31 - 1.
+* ``set``: ``unit.parameter`` -> value [the parameter's SI unit] on top of the record scenario's. Only plant
+  units. The sampled plants below are variants of this kind.
 * ``current_lag``: tau [s] > 0 of a ``CurrentLag`` unit inserted between the controller's command and the
   isolator (in series with the scenario's own coil lag, if it has one; a scenario's lag is varied by ``scale``).
+
+``plant_samples`` (beside or instead of ``variants``) draws plants from the isolator's identified uncertainty
+(:mod:`components.identification.plant_sampling`): ``lhs`` variants ``lhs-001`` ... from a Latin hypercube, for
+each criterion's spread, and ``sobol`` base points of SALib's Saltelli design on the first ``axes`` principal axes
+(``sobol-0001`` ..., N (axes + 2) variants), for the Sobol indices; each sets the unit's coefficients::
+
+    plant_samples: {file: plants/plant_samples_bouc_wen-joint.yaml, unit: isolator, lhs: 32, sobol: 16, axes: 4}
 
 A variant that would run the nominal plant unchanged is refused, and numbers are numbers: ``true``, ``'0.01'``
 or ``1.5`` for an integer are refused (pydantic strict types). Problems are reported together, each naming
@@ -44,6 +53,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictFloat, StrictInt, Stric
 
 MAX_DELAY_STEPS = 100_000  # the SensorChannels unit's limit (components/physics/sensor_channels_core.py)
 MAX_SEED = 2**31 - 1  # the SensorChannels unit's seed is an FMI Integer: a signed 32-bit integer
+SAMPLED = re.compile(r"(lhs-\d{3,}|sobol-\d{4,})")  # the names of the sampled plants (RobustnessSpec.variant_names)
 _PORT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\.[A-Za-z_][A-Za-z0-9_.\[\]]*$")
 
 
@@ -92,6 +102,7 @@ class VariantSpec(_Strict):
     scale: dict[str, StrictFloat] = Field(default_factory=dict)  # "unit.parameter" -> factor on its nominal value
     sensors: SensorSpec | None = None
     current_lag: StrictFloat | None = None  # tau [s] > 0 of an inserted CurrentLag unit
+    set: dict[str, StrictFloat] = Field(default_factory=dict)  # "unit.parameter" -> value [SI] on the plant
 
     @field_validator("scale")
     @classmethod
@@ -105,6 +116,14 @@ class VariantSpec(_Strict):
                 raise ValueError(f"scale.{key}: a factor of 1 changes nothing (the variant would be the nominal run)")
         return value
 
+    @field_validator("set")
+    @classmethod
+    def _set(cls, value: dict[str, float]) -> dict[str, float]:
+        for key in value:
+            if not _PORT.match(key):
+                raise ValueError(f"set: {key!r} is not a parameter 'unit.parameter'")
+        return value
+
     @field_validator("current_lag")
     @classmethod
     def _lag(cls, value: float | None) -> float | None:
@@ -115,24 +134,73 @@ class VariantSpec(_Strict):
 
     @model_validator(mode="after")
     def _something(self) -> VariantSpec:
-        if not (self.plant or self.scale or self.sensors is not None or self.current_lag is not None):
-            raise ValueError("a variant needs at least one of plant, scale, sensors, current_lag")
+        if not (self.plant or self.scale or self.set or self.sensors is not None or self.current_lag is not None):
+            raise ValueError("a variant needs at least one of plant, scale, set, sensors, current_lag")
+        return self
+
+
+class PlantSamplingSpec(_Strict):
+    """Plants drawn from a plant-sample file's covariance (see the module): how many, for what, and the seed."""
+
+    file: StrictStr  # a plant-sample file (kind: plant-samples), relative to the file that wrote it
+    unit: StrictStr = "isolator"  # the unit whose coefficients each sample sets
+    lhs: StrictInt = Field(32, ge=0, le=4096)  # Latin-hypercube samples (0: none)
+    sobol: StrictInt = Field(0, ge=0, le=4096)  # SALib's base sample N (a power of 2; 0: no Sobol indices)
+    axes: StrictInt = Field(4, ge=1, le=12)  # principal axes the Sobol design varies (the others at 0)
+    seed: StrictInt = Field(1, ge=0, le=2**32 - 1)
+
+    @field_validator("sobol")
+    @classmethod
+    def _power_of_two(cls, value: int) -> int:
+        if value and value & (value - 1):
+            raise ValueError(f"sobol = {value}: SALib's Saltelli design needs a power of 2 (e.g. "
+                             f"{1 << (value.bit_length() - 1)} or {1 << value.bit_length()})")
+        return value
+
+    @field_validator("lhs")
+    @classmethod
+    def _spread(cls, value: int) -> int:
+        if value == 1:
+            raise ValueError("lhs = 1: a spread needs at least 2 samples")
+        return value
+
+    @model_validator(mode="after")
+    def _some(self) -> PlantSamplingSpec:
+        if not (self.lhs or self.sobol):
+            raise ValueError("plant_samples needs lhs > 0 or sobol > 0 (it would draw no plant)")
         return self
 
 
 class RobustnessSpec(_Strict):
     """The study's variants (run on every record x strategy of the study), and the units they insert."""
 
-    variants: dict[str, VariantSpec]
+    variants: dict[str, VariantSpec] = Field(default_factory=dict)
+    plant_samples: PlantSamplingSpec | None = None
+    strategies: list[StrictStr] | None = None  # the strategies run under the variants (default: all the study's)
     sensors_fmu: StrictStr = "../fmus/SensorChannels.fmu"  # relative to the file that wrote it; default: the project's
     lag_fmu: StrictStr = "../fmus/CurrentLag.fmu"
 
     @field_validator("variants")
     @classmethod
     def _names(cls, value: dict[str, VariantSpec]) -> dict[str, VariantSpec]:
-        if not value:
-            raise ValueError("robustness needs at least one variant")
         for name in value:
             if name in ("nominal", "reference") or not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.+-]*", name):
                 raise ValueError(f"variant name {name!r}: letters, digits, '_.+-' only, not 'nominal' or 'reference'")
+            if SAMPLED.fullmatch(name):
+                raise ValueError(f"variant name {name!r}: lhs-NNN and sobol-NNNN are the sampled plants' names")
         return value
+
+    @model_validator(mode="after")
+    def _any(self) -> RobustnessSpec:
+        if not self.variants and self.plant_samples is None:
+            raise ValueError("robustness needs at least one variant (or plant_samples)")
+        return self
+
+    def variant_names(self) -> list[str]:
+        """Every variant's name: the declared ones, then the sampled plants' (lhs-001 ..., sobol-0001 ...)."""
+        names = list(self.variants)
+        ps = self.plant_samples
+        if ps is not None:
+            names += [f"lhs-{k:03d}" for k in range(1, ps.lhs + 1)]
+            names += [f"sobol-{k:04d}" for k in range(1, ps.sobol * (ps.axes + 2) + 1)]
+        return names

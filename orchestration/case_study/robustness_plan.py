@@ -13,6 +13,7 @@ The overrides come after the study's and the strategy's (:func:`case_plan.run_st
   re-evaluated with the end-of-step value and the chain is an exact pass-through without noise) and
   ``sensors.y_<q>_<k> -> controller.in`` (as the original was, ``delayed``). The channel's quantity
   ``q`` follows the SI unit the source variable declares (m, m/s, m/s2, N);
+* ``set``: ``<unit>.<parameter>=<value>``, a Real parameter of the planned plant (the sampled plants');
 * ``current_lag`` > 0: a ``CurrentLag`` unit named ``current_lag``: ``controller.i -> current_lag.i_cmd``
   and ``current_lag.i -> <every former target of controller.i>`` (in series with a scenario's own coil lag;
   that one is varied by ``scale``).
@@ -29,7 +30,7 @@ from typing import Any
 
 from mre_common.fs_limits import path_problem
 from orchestration.building_studies.strategies import COMMAND, CONTROLLER
-from orchestration.case_study.case_config import LoadedStudy
+from orchestration.case_study.case_config import LoadedStudy, variant_strategies
 from orchestration.case_study.robustness_config import PlantUnit, VariantSpec
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
 from orchestration.engine_hooks import plan_scenario
@@ -43,9 +44,11 @@ NOMINAL = "nominal"  # the variant name of the study's own runs in robustness.cs
 
 
 def variants(study: LoadedStudy) -> dict[str, VariantSpec]:
-    """The study's variants by name (empty without a robustness section)."""
+    """The study's variants by name, the sampled plants' last (empty without a robustness section)."""
+    from orchestration.case_study.plant_uncertainty import sampled_variants
+
     rob = study.spec.robustness
-    return {} if rob is None else dict(rob.variants)
+    return {} if rob is None else {**rob.variants, **sampled_variants(study)}
 
 
 def _key(name: str, *key: Any) -> tuple[Any, ...]:
@@ -158,10 +161,11 @@ class VariantPlanner:
                 text = _fmu_file_problem(_plant_fmu(study, name, u))
                 if text is not None:
                     out.append(problem(study, text, name, "plant", u))
-        for k in spec.scale:
-            if _unit(k) == CONTROLLER:
-                out.append(problem(study, "scale applies to the plant only: the controller keeps its nominal "
-                                          "model parameters", name, "scale", k))
+        for key in ("scale", "set"):
+            for k in getattr(spec, key):
+                if _unit(k) == CONTROLLER:
+                    out.append(problem(study, f"{key} applies to the plant only: the controller keeps its nominal "
+                                              "model parameters", name, key, k))
         return out
 
     def overrides(self, record: str, name: str, strategy_overrides: tuple[str, ...]) -> tuple[str, ...]:
@@ -182,25 +186,7 @@ class VariantPlanner:
                   and (not isinstance(entry, PlantUnit) or plan.parameters.get(u) == nominal.parameters.get(u))):
                 problems.append(problem(study, f"{record}: {u} is that FMU already, with the same parameters: the "
                                                "swap would change nothing", name, "plant", u))
-        for k, factor in spec.scale.items():
-            unit, _, param = k.partition(".")
-            desc = plan.descriptions.get(unit)
-            var = desc.variables.get(param) if desc is not None else None
-            if var is None or var.causality != "parameter" or var.type != "Real":
-                problems.append(problem(study, f"{record}: the plant has no Real parameter {k}", name, "scale", k))
-                continue
-            nominal = plan.parameters.get(unit, {}).get(param, var.start)
-            try:
-                value = float(nominal) * factor
-            except (TypeError, ValueError):
-                problems.append(problem(study, f"{record}: {k} has no numeric nominal value ({nominal!r})", name,
-                                        "scale", k))
-                continue
-            if value == 0:
-                problems.append(problem(study, f"{record}: {k} is 0 on the nominal plant: scaling it changes nothing",
-                                        name, "scale", k))
-                continue
-            out.append(f"{k}={value!r}")
+        out += self._parameters(record, name, plan, problems)
         units = self._tree(record).get("units") or {}
         conns = self._connections(record, strategy_overrides)
         if spec.sensors is not None or spec.current_lag:
@@ -216,6 +202,35 @@ class VariantPlanner:
         if spec.sensors is not None or spec.current_lag:
             out.append(f"connections={json.dumps(conns)}")
         return tuple(out)
+
+    def _parameters(self, record: str, name: str, plan: Any, problems: list[Problem]) -> list[str]:
+        """The ``scale`` and ``set`` overrides of a variant on the planned plant (problems appended)."""
+        study, spec = self.study, variants(self.study)[name]
+        out: list[str] = []
+        for key, items in (("scale", spec.scale), ("set", spec.set)):
+            for k, number in items.items():
+                unit, _, param = k.partition(".")
+                desc = plan.descriptions.get(unit)
+                var = desc.variables.get(param) if desc is not None else None
+                if var is None or var.causality != "parameter" or var.type != "Real":
+                    problems.append(problem(study, f"{record}: the plant has no Real parameter {k}", name, key, k))
+                    continue
+                if key == "set":
+                    out.append(f"{k}={number!r}")
+                    continue
+                nominal = plan.parameters.get(unit, {}).get(param, var.start)
+                try:
+                    value = float(nominal) * number
+                except (TypeError, ValueError):
+                    problems.append(problem(study, f"{record}: {k} has no numeric nominal value ({nominal!r})", name,
+                                            "scale", k))
+                    continue
+                if value == 0:
+                    problems.append(problem(study, f"{record}: {k} is 0 on the nominal plant: scaling it changes "
+                                                   "nothing", name, "scale", k))
+                    continue
+                out.append(f"{k}={value!r}")
+        return out
 
     def _connections(self, record: str, strategy_overrides: tuple[str, ...]) -> list[dict[str, Any]]:
         """The run's connections: the strategy's ``connections=`` override if any, else the scenario's."""
@@ -314,7 +329,7 @@ def check_variants(study: LoadedStudy, base: tuple[str, ...], sets: dict[str, di
     for name in names:
         for r in spec.records:
             path = study.scenario_path(r)
-            for s in spec.strategies:
+            for s in variant_strategies(spec):
                 if s == "best-constant":  # the same unit as passive-on, its current known after the sweep
                     continue
                 strategy = study.strategy(s)

@@ -37,14 +37,20 @@ SOSM = ("sosm", "sosm-fig15")
 Rows = list[dict[str, Any]]
 
 
-def variant_names(study: CaseStudyRecord) -> list[str]:
-    """The study's variants in the order of its file."""
+def declared_names(study: CaseStudyRecord) -> list[str]:
+    """The variants the study file declares, in its order (not the sampled plants)."""
     return list((study.config.get("robustness") or {}).get("variants") or {})
 
 
-def robustness_rows(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str, str], dict[str, float]],
-                    baseline: str) -> Rows:
-    """Rows of robustness.csv (see the module): ``raw`` holds the nominal runs' raw criteria by (record, strategy)."""
+def variant_names(study: CaseStudyRecord) -> list[str]:
+    """Every variant of the study: the declared ones in the order of its file, then the sampled plants."""
+    declared = declared_names(study)
+    return declared + [v for v in dict.fromkeys(e.variant for e in study.variant_runs)
+                       if v is not None and v not in declared]
+
+
+def variant_raw(folder: Path, study: CaseStudyRecord) -> dict[tuple[str, str, str], dict[str, float] | None]:
+    """Raw criteria of every variant run that was run, by (record, strategy, variant); None for one that failed."""
     vraw: dict[tuple[str, str, str], dict[str, float] | None] = {}
     for e in study.variant_runs:
         if not e.ok and e.status is None:
@@ -54,6 +60,15 @@ def robustness_rows(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str, s
         vraw[(e.record, e.strategy, e.variant or "")] = (
             raw_criteria(read_timeseries(path), study.records[e.record].masses_kg, e.energy)
             if e.ok and path.is_file() else None)
+    return vraw
+
+
+def robustness_rows(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str, str], dict[str, float]],
+                    baseline: str, vraw: dict[tuple[str, str, str], dict[str, float] | None] | None = None) -> Rows:
+    """Rows of robustness.csv (see the module): ``raw`` holds the nominal runs' raw criteria by (record, strategy),
+    ``vraw`` the variant runs' (:func:`variant_raw`, read here when not given)."""
+    if vraw is None:
+        vraw = variant_raw(folder, study)
     rows = []
     for s in study.strategies:
         for v in [NOMINAL, *variant_names(study)]:
@@ -151,14 +166,18 @@ def verdict(rows: Rows, study: CaseStudyRecord) -> list[str]:
 def robustness_blocks(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str, str], dict[str, float]],
                       baseline: str) -> list[Block]:
     """Write robustness.csv; the report's robustness section."""
-    rows = robustness_rows(folder, study, raw, baseline)
+    vraw = variant_raw(folder, study)
+    rows = robustness_rows(folder, study, raw, baseline, vraw)
     atomic_write_text(folder / "robustness.csv", csv_text(rows))
-    names = variant_names(study)
+    names = declared_names(study)
+    sampled = [v for v in variant_names(study) if v not in names]
     not_run = [e.key for e in study.variant_runs if not e.ok and e.status is None]
     labels = (study.config.get("robustness") or {}).get("variants") or {}
     blocks = [Block("h", "Robustness (designed on the nominal models, run on other plants)"),
               Block("p", "Variants: " + "; ".join(f"**{v}**" + (f" ({labels[v].get('label')})" if labels.get(v, {})
-                                                                   .get("label") else "") for v in names) + ". "
+                                                                   .get("label") else "") for v in names)
+                    + (f"{'; ' if names else ''}{len(sampled)} sampled plants (their section below)" if sampled else "")
+                    + ". "
                     f"robustness.csv: J3, J4, J5 over **{baseline} on the nominal plant** (as criteria.csv), and the "
                     "change against the same strategy's nominal run in per cent (positive: worse)."),
               *([Block("p", f"**Incomplete**: {len(not_run)} of {len(study.variant_runs)} variant runs were not run "
@@ -178,19 +197,24 @@ def robustness_blocks(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str,
         body.append([s + ("" if s in ctrl else " (constant)"), *cells, str(failed)])
     blocks.append(Block("table", header=["strategy", "worst J3 change", "worst J4 change", "worst J5 change",
                                          "runs failed"], rows=body))
-    blocks.append(Block("h", "Worst change of J3, J4, J5 per variant", level=3))
-    body = []
-    for s in study.strategies:
-        cells = []
-        for v in names:
-            vals = [math.inf if not row["complete"] else max(row[f"{j}_change_pct"] for j in JS)
-                    for row in rows if row["strategy"] == s and row["variant"] == v]
-            cells.append(_pct(max(vals)) if vals else "–")
-        body.append([s, *cells])
-    blocks.append(Block("table", header=["strategy", *names], rows=body))
+    if names:
+        blocks.append(Block("h", "Worst change of J3, J4, J5 per declared variant", level=3))
+        body = []
+        for s in study.strategies:
+            cells = []
+            for v in names:
+                vals = [math.inf if not row["complete"] else max(row[f"{j}_change_pct"] for j in JS)
+                        for row in rows if row["strategy"] == s and row["variant"] == v]
+                cells.append(_pct(max(vals)) if vals else "–")
+            body.append([s, *cells])
+        blocks.append(Block("table", header=["strategy", *names], rows=body))
     blocks.append(Block("h", "The paper's robustness claim for SOSM", level=3))
     blocks.append(Block("ul", items=verdict(rows, study)))
     blocks.append(Block("p", "Nominal J5 for reference: " + "; ".join(
         f"{s} " + "/".join(fmt(row["J5"]) for row in rows if row["strategy"] == s and row["variant"] == NOMINAL)
         for s in study.strategies) + f" (records {', '.join(study.records)})."))
+    if sampled and (folder / "plant_design.json").is_file():
+        from orchestration.case_study.plant_uncertainty import uncertainty_blocks
+
+        blocks += uncertainty_blocks(folder, study, vraw, raw, baseline)
     return blocks

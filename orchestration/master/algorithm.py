@@ -441,7 +441,8 @@ class CouplingAlgorithm:
             typed_ins = [i for i in ins if self._source[i] in self.typed_slot]
             last = max((k for k, p in enumerate(plan) if self._step_unit(p) == name), default=None)
             if last is not None and not typed_local and self._sets_all(plan[last], real_ins, typed_ins):
-                outs = [] if plan[last].real_get is None else self._ports_of(plan[last].real_get)
+                got = plan[last].real_get
+                outs = [] if got is None else self._ports_of(got)
                 plan[last].real_get = self._transfer(unit, outs + local, [self.slot[p] for p in outs + local])
                 continue
             rules = [RULES.index("grid" if self._link_rule.get(i) == "grid" else "fresh") for i in real_ins]

@@ -73,7 +73,7 @@ def test_robustness_without_benchmark_is_refused(tmp_path, capsys):
 
 
 def test_a_variant_must_change_something():
-    with pytest.raises(ValueError, match="at least one of plant, scale, sensors, current_lag"):
+    with pytest.raises(ValueError, match="at least one of plant, scale, set, sensors, current_lag"):
         VariantSpec()
 
 
@@ -202,3 +202,56 @@ def test_no_op_plant_variants_are_refused_before_any_run(tmp_path, capsys):
     assert "robustness.variants.zero.scale.building.k_0" in err and "is 0 on the nominal plant" in err
     assert "Traceback" not in err
     assert not out.exists()
+
+
+def test_bad_plant_samples_are_all_reported_with_key_and_line(tmp_path, capsys):
+    path, out = _study(tmp_path, """\
+        robustness:
+          plant_samples: {file: plants/none.yaml, lhs: 1, sobol: 12, axes: 0}
+          variants:
+            lhs-001: {scale: {building.m_1: 1.2}}
+        """)
+    assert main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "robustness.plant_samples.sobol" in err and "power of 2 (e.g. 8 or 16)" in err
+    assert "robustness.plant_samples.axes" in err and "study.yaml:5" in err
+    assert "lhs = 1: a spread needs at least 2 samples" in err
+    assert "'lhs-001': lhs-NNN and sobol-NNNN are the sampled plants' names" in err
+    assert "Traceback" not in err and not out.exists()
+
+
+def test_a_plant_sample_file_that_is_missing_or_no_sample_file_is_exit_2_naming_the_key(tmp_path, capsys):
+    for text, said in ((None, "cannot read"), ("kind: other\n", "not a plant-sample file")):
+        if text is not None:
+            (tmp_path / "samples.yaml").write_text(text)
+        path, out = _study(tmp_path, f"""\
+            strategies: [passive-off, passive-on]
+            records: {{elcentro: {PROJECT / 'scenarios' / 'nominal_plant_elcentro.yaml'}}}
+            robustness:
+              plant_samples: {{file: samples.yaml, lhs: 4}}
+            """)
+        assert main([str(path)]) == 2
+        err = capsys.readouterr().err
+        assert "robustness.plant_samples.file" in err and said in err and "study.yaml:7" in err, err
+        assert "Traceback" not in err and not out.exists()
+
+
+def test_sampled_plants_are_variants_named_in_order():
+    from orchestration.case_study.robustness_config import RobustnessSpec
+
+    spec = RobustnessSpec.model_validate({"plant_samples": {"file": "x.yaml", "lhs": 3, "sobol": 2, "axes": 1},
+                                          "variants": {"mass": {"scale": {"building.m_1": 1.1}}}})
+    assert spec.variant_names() == ["mass", "lhs-001", "lhs-002", "lhs-003", *[f"sobol-{k:04d}" for k in range(1, 7)]]
+
+
+def test_variant_strategies_must_be_the_studys(tmp_path, capsys):
+    path, out = _study(tmp_path, """\
+        strategies: [passive-off, sosm]
+        robustness:
+          strategies: [sosm, lyapunov]
+          variants: {lag: {current_lag: 0.01}}
+        """)
+    assert main([str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "robustness.strategies: 'lyapunov' not among the study's strategies (passive-off, sosm)" in err
+    assert "Traceback" not in err and not out.exists()

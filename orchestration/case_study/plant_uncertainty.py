@@ -1,0 +1,235 @@
+"""The plant's own uncertainty in a controller benchmark: sampled plants as robustness variants, and what they give.
+
+A study's ``robustness.plant_samples`` (robustness_config) becomes ``set`` variants, one per drawn plant, each
+setting the isolator unit's coefficients (SI, the FMU's names) from a plant-sample file's covariance
+(:mod:`components.identification.plant_sampling`). They run like any variant. Afterwards:
+
+* ``plant_design.csv``: per sampled variant its design (lhs or sobol), its coordinates on the principal axes and
+  the coefficients it set;
+* ``plant_uncertainty.csv``: per strategy and criterion (J1-J9 over the benchmark baseline on the nominal plant,
+  as criteria.csv) the nominal value and the median, 5 % and 95 % quantiles and count of valid runs over the
+  Latin-hypercube plants, per record;
+* ``sobol.csv``: per strategy, record, criterion (J3, J5) and axis, the first-order and total Sobol indices with
+  their 95 % confidence half-widths (SALib), computed only when every run of the Saltelli design is valid.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from components.identification.plant_samples import PlantSampleError, load_plant_samples
+from components.identification.plant_sampling import (
+    COEFFICIENTS,
+    PlantDistribution,
+    distribution,
+    lhs_normal,
+    sobol_design,
+    sobol_indices,
+)
+from components.physics.bouc_wen_core import BoucWenCurrentModel, device_problem
+from components.physics.mre_isolator_core import ParameterError
+from mre_common.atomic_files import atomic_write_text
+from orchestration.case_study.benchmark_criteria import CRITERIA, J6_REFERENCE, normalised
+from orchestration.case_study.case_rendering import Block, fmt
+from orchestration.case_study.robustness_config import PlantSamplingSpec, VariantSpec
+from orchestration.master.errors import Problem, ScenarioError
+from orchestration.master.yaml_source import dotted
+
+KEY = ("robustness", "plant_samples")
+SOBOL_CRITERIA = ("J3", "J5")
+SPREAD_CRITERIA = CRITERIA
+
+
+@functools.lru_cache(maxsize=8)
+def _drawn(path: str, mtime_ns: int, spec_json: str) -> tuple[PlantDistribution, list[tuple[str, str, np.ndarray,
+                                                                                                np.ndarray]]]:
+    """(distribution, [(variant, design, xi, coefficients)]) of a plant-sample file and a spec (cached)."""
+    spec = PlantSamplingSpec.model_validate_json(spec_json)
+    nominal, samples = load_plant_samples(path)
+    dist = distribution(nominal, samples)
+    drawn: list[tuple[str, str, np.ndarray, np.ndarray]] = []
+    if spec.lhs:
+        xi = lhs_normal(spec.lhs, len(dist.variances), spec.seed)
+        drawn += [(f"lhs-{k + 1:03d}", "lhs", x, c) for k, (x, c) in enumerate(zip(xi, dist.coefficients(xi),
+                                                                                     strict=True))]
+    if spec.sobol:
+        k_axes = min(spec.axes, len(dist.variances))
+        xi = sobol_design(spec.sobol, k_axes, spec.seed)
+        drawn += [(f"sobol-{k + 1:04d}", "sobol", x, c) for k, (x, c) in enumerate(zip(xi, dist.coefficients(xi),
+                                                                                         strict=True))]
+    return dist, drawn
+
+
+def _problem(study: Any, message: str, *key: Any) -> Problem:
+    path = (*KEY, *key)
+    for k in range(len(path), -1, -1):
+        hit = study.lines.get(path[:k])
+        if hit is not None:
+            return Problem(f"robustness.plant_samples: {message}", dotted(path), hit[0], hit[1])
+    return Problem(f"robustness.plant_samples: {message}", dotted(path), str(study.path))
+
+
+def samples_path(study: Any) -> Path:
+    """The plant-sample file, absolute (relative to the file that wrote the key)."""
+    spec = study.spec.robustness.plant_samples
+    p = Path(spec.file)
+    return p if p.is_absolute() else (study.base_dir(*KEY, "file") / p).resolve()
+
+
+def drawn(study: Any) -> tuple[PlantDistribution, list[tuple[str, str, np.ndarray, np.ndarray]]]:
+    """The study's sampled plants; ScenarioError naming the key and line if the file or a plant is unusable."""
+    spec = study.spec.robustness.plant_samples
+    path = samples_path(study)
+    if spec.sobol:
+        try:
+            import SALib  # noqa: F401
+        except ImportError:
+            raise ScenarioError([_problem(study, "sobol needs SALib (pip install -e \".[uncertainty]\")",
+                                          "sobol")]) from None
+    try:
+        dist, plants = _drawn(str(path), path.stat().st_mtime_ns, spec.model_dump_json())
+    except OSError as exc:
+        raise ScenarioError([_problem(study, f"cannot read {path} ({exc.strerror or exc})", "file")]) from None
+    except (PlantSampleError, ValueError) as exc:
+        raise ScenarioError([_problem(study, str(exc), "file")]) from None
+    problems = []
+    for name, _, _, c in plants:
+        try:
+            device_problem(BoucWenCurrentModel(**dict(zip(COEFFICIENTS, c, strict=True))), beyond_range="stop")
+        except ParameterError as exc:
+            problems.append(_problem(study, f"plant {name} is no device ({exc}); another seed draws other plants",
+                                     "seed"))
+    if problems:
+        raise ScenarioError(problems)
+    return dist, plants
+
+
+def sampled_variants(study: Any) -> dict[str, VariantSpec]:
+    """The sampled plants as ``set`` variants of the unit (empty without ``plant_samples``)."""
+    rob = study.spec.robustness
+    if rob is None or rob.plant_samples is None:
+        return {}
+    unit = rob.plant_samples.unit
+    _, plants = drawn(study)
+    return {name: VariantSpec(label=f"{design} plant {name.partition('-')[2].lstrip('0')}",
+                              set={f"{unit}.{n}": float(v) for n, v in zip(COEFFICIENTS, c, strict=True)})
+            for name, design, _, c in plants}
+
+
+# -- after the runs ---------------------------------------------------------------------------------------------
+def _csv(header: list[str], rows: list[list[Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def design_csv(dist: PlantDistribution, plants: list[tuple[str, str, np.ndarray, np.ndarray]]) -> str:
+    """plant_design.csv: variant, design, xi_1 ... xi_n (0 beyond the design's axes), the coefficients [SI]."""
+    n = len(dist.variances)
+    rows = [[name, design, *[repr(float(v)) for v in np.pad(x, (0, n - len(x)))], *[repr(float(v)) for v in c]]
+            for name, design, x, c in plants]
+    return _csv(["variant", "design", *[f"xi_{k + 1}" for k in range(n)], *COEFFICIENTS], rows)
+
+
+def write_design(folder: Path, study: Any) -> None:
+    """plant_design.csv and plant_design.json (the file, the spec, the axes' variances) before the runs: what the
+    report reads back, so that ``--report`` needs neither the study file nor the plant-sample file."""
+    spec = study.spec.robustness.plant_samples
+    dist, plants = drawn(study)
+    atomic_write_text(folder / "plant_design.csv", design_csv(dist, plants))
+    atomic_write_text(folder / "plant_design.json", json.dumps({
+        "file": str(samples_path(study)), "bootstrap_samples": dist.n_samples, "spec": spec.model_dump(),
+        "free": dist.free_names, "variances": dist.variances.tolist(),
+        "lhs": [n for n, d, _, _ in plants if d == "lhs"], "sobol": [n for n, d, _, _ in plants if d == "sobol"],
+    }, indent=1) + "\n")
+
+
+def _values(vraw: dict[tuple[str, str, str], dict[str, float] | None], strategy: str, record: str,
+            names: list[str], j: str, base: dict[str, float], j6_reference: dict[str, float]) -> np.ndarray:
+    """J of the strategy's runs on the named variants, normalised as criteria.csv (over the nominal plant's
+    baseline, J6 over the nominal J6 reference), NaN where a run failed."""
+    out = []
+    for v in names:
+        raw = vraw.get((record, strategy, v))
+        out.append(math.nan if raw is None else normalised(raw, base, j6_reference)[j])
+    return np.array(out, dtype=float)
+
+
+def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str], Any],
+                       raw: dict[tuple[str, str], dict[str, float]], baseline: str) -> list[Block]:
+    """Write plant_uncertainty.csv and sobol.csv from the runs; the report's section on the plant's uncertainty.
+
+    ``study``: the study record (strategies, records); ``vraw``: raw criteria per (record, strategy, variant),
+    None for a failed run; ``raw``: the nominal runs'. The design is the one plant_design.json recorded."""
+    design = json.loads((folder / "plant_design.json").read_text(encoding="utf-8"))
+    spec = PlantSamplingSpec.model_validate(design["spec"])
+    variances = np.asarray(design["variances"], dtype=float)
+    lhs, sob = list(design["lhs"]), list(design["sobol"])
+
+    def explained(k: int) -> float:
+        return float(variances[:k].sum() / variances.sum())
+    spread_rows, sobol_rows = [], []
+    table = []
+    for r in study.records:
+        base, ref = raw.get((r, baseline), {}), raw.get((r, J6_REFERENCE), {})
+        for s in [s for s in study.strategies if any(k[1] == s for k in vraw)]:  # those run on the plants
+            nominal = normalised(raw.get((r, s), {}), base, ref)
+            for j in SPREAD_CRITERIA:
+                nom = nominal[j]
+                y = _values(vraw, s, r, lhs, j, base, ref) if lhs else np.array([])
+                ok = y[np.isfinite(y)]
+                q = np.quantile(ok, [0.05, 0.5, 0.95]) if len(ok) else [math.nan] * 3
+                spread_rows.append([s, r, j, repr(nom), repr(float(q[1])), repr(float(q[0])), repr(float(q[2])),
+                                    len(ok), len(y)])
+                if j in ("J3", "J4", "J5") and lhs:
+                    table.append([s, r, j, fmt(nom), f"{fmt(float(q[1]))} [{fmt(float(q[0]))}, {fmt(float(q[2]))}]",
+                                  f"{len(ok)}/{len(y)}"])
+            if not sob:
+                continue
+            k_axes = min(spec.axes, len(variances))
+            for j in SOBOL_CRITERIA:
+                y = _values(vraw, s, r, sob, j, base, ref)
+                if not np.all(np.isfinite(y)):
+                    sobol_rows.append([s, r, j, "", "", "", "", "", "",
+                                       f"not computed: {int(np.sum(~np.isfinite(y)))} of {len(y)} runs invalid"])
+                    continue
+                ind = sobol_indices(y, k_axes, spec.seed)
+                for a in range(k_axes):
+                    sobol_rows.append([s, r, j, a + 1, repr(explained(a + 1) - explained(a)),
+                                       *[repr(float(ind[key][a])) for key in ("S1", "S1_conf", "ST", "ST_conf")], ""])
+    atomic_write_text(folder / "plant_uncertainty.csv", _csv(
+        ["strategy", "record", "criterion", "nominal", "median", "q05", "q95", "valid", "runs"], spread_rows))
+    blocks = [Block("h", "The plant's own uncertainty (sampled isolators)"),
+              Block("p", f"{len(lhs)} Latin-hypercube and {len(sob)} Saltelli-design plants drawn from the "
+                         f"covariance of {design['bootstrap_samples']} bootstrap refits ({Path(spec.file).name}), "
+                         f"centred on the nominal fit, seed {spec.seed} (plant_design.csv). Criteria over {baseline} "
+                         "on the nominal plant, as criteria.csv (plant_uncertainty.csv has J1-J9).")]
+    if table:
+        blocks += [Block("h", "Spread over the Latin-hypercube plants", level=3),
+                   Block("table", header=["strategy", "record", "criterion", "nominal plant",
+                                          "median [5 %, 95 %]", "valid runs"], rows=table)]
+    if sob:
+        atomic_write_text(folder / "sobol.csv", _csv(
+            ["strategy", "record", "criterion", "axis", "axis_variance_share", "S1", "S1_conf", "ST", "ST_conf",
+             "note"], sobol_rows))
+        body = [[row[0], row[1], row[2], str(row[3]), fmt(float(row[4])),
+                 f"{fmt(float(row[5]))} ± {fmt(float(row[6]))}", f"{fmt(float(row[7]))} ± {fmt(float(row[8]))}"]
+                if row[3] != "" else [row[0], row[1], row[2], "–", "–", row[9], "–"] for row in sobol_rows]
+        k_axes = min(spec.axes, len(variances))
+        blocks += [Block("h", "Sobol indices on the principal axes", level=3),
+                   Block("p", f"SALib's Saltelli design, N = {spec.sobol}, on the first {k_axes} principal axes "
+                              f"({100 * explained(k_axes):.0f} % of the standardised variance; the others held at 0); "
+                              "± the 95 % confidence half-width."),
+                   Block("table", header=["strategy", "record", "criterion", "axis", "axis variance share",
+                                          "S1", "ST"], rows=body)]
+    return blocks
