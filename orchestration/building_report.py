@@ -14,10 +14,10 @@ displacements and drifts are drawn in mm, as engineers read them.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import ConfigDict, Field, field_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from components.physics.building_periods import (
     REFERENCE_DISPLACEMENT_M,
@@ -25,6 +25,7 @@ from components.physics.building_periods import (
     isolated_period,
     isolator_secant_stiffness,
 )
+from components.physics.ground_motion_core import G as STANDARD_GRAVITY
 from components.physics.mre_isolator_core import DEVICE_LIMIT_M, IDENTIFIED_RANGE_M
 from components.physics.shear_building_core import ENERGY_NAMES
 from orchestration.building_studies.isolated_structure import NotMonolithic, structure_setup
@@ -72,6 +73,12 @@ class BuildingReport(ReportSpec):
     step_tolerance: Number = Field(
         DEFAULT_STEP_TOLERANCE, description="largest change of a peak with the plant's step halved (--verify-step) "
                                             "of a run converged in the step, as a fraction")
+    acceleration_unit: Literal["m/s2", "g"] = Field(
+        "m/s2", description="the figures' acceleration axis: m/s2, or g (standard gravity 9.80665 m/s2)")
+    drift_unit: Literal["mm", "ratio"] = Field(
+        "mm", description="the figures' drift axis: mm, or the drift ratio drift_j / h_j in % (needs storey_heights)")
+    storey_heights: list[Number] | None = Field(
+        None, description="h_j [m] of storeys 1..n, in the order of drifts (for drift_unit: ratio)")
 
     @field_validator("energy_tolerance", "step_tolerance")
     @classmethod
@@ -79,6 +86,23 @@ class BuildingReport(ReportSpec):
         if isinstance(value, bool) or not (math.isfinite(value) and value > 0):
             raise ValueError(f"must be a finite positive number (a fraction, e.g. 0.01), got {value!r}")
         return value
+
+    @field_validator("storey_heights")
+    @classmethod
+    def _heights(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not all(not isinstance(h, bool) and math.isfinite(h) and h > 0 for h in value):
+            raise ValueError(f"storey heights must be finite positive lengths [m], got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _ratio_needs_heights(self) -> BuildingReport:
+        if self.drift_unit == "ratio":
+            if not self.storey_heights:
+                raise ValueError("drift_unit: ratio needs report.storey_heights [m], one per storey (drift_j / h_j)")
+            if self.drifts and len(self.storey_heights) != len(self.drifts):
+                raise ValueError(f"storey_heights gives {len(self.storey_heights)} heights for {len(self.drifts)} "
+                                 "drifts: one per storey, in the order of report.drifts")
+        return self
 
     @field_validator("displacement_limits")
     @classmethod
@@ -228,13 +252,22 @@ def plot(spec: BuildingReport, rec: Recorder, run: RunDescription, figures: Figu
             ground = str(spec.ground_acceleration)
             lines.append((rec.column(ground), named(run, ground, "ground acceleration"), {"color": "0.6", "lw": 0.6}))
         lines.append((rec.column(top), named(run, top, "top floor"), {"color": "C0"}))
-        figures.save(time_figure(f"absolute acceleration: {named(run, top, 'top floor')}", "acceleration [m/s²]",
+        if spec.acceleration_unit == "g":
+            lines = [(y / STANDARD_GRAVITY, label, style) for y, label, style in lines]
+        figures.save(time_figure(f"absolute acceleration: {named(run, top, 'top floor')}",
+                                 "acceleration [g]" if spec.acceleration_unit == "g" else "acceleration [m/s²]",
                                  lines),
                      "top_floor_acceleration.png")
     if spec.drifts:
-        lines = [(1e3 * rec.column(str(r)), named(run, str(r), f"storey {k}"), {})
-                 for k, r in enumerate(spec.drifts, start=1)]
-        figures.save(time_figure("inter-storey drifts", "drift [mm]", lines), "drifts.png")
+        if spec.drift_unit == "ratio":
+            heights = [float(h) for h in spec.storey_heights or ()]
+            lines = [(100.0 * rec.column(str(r)) / h, named(run, str(r), f"storey {k}"), {})
+                     for k, (r, h) in enumerate(zip(spec.drifts, heights, strict=True), start=1)]
+            figures.save(time_figure("inter-storey drift ratios", "drift ratio [%]", lines), "drifts.png")
+        else:
+            lines = [(1e3 * rec.column(str(r)), named(run, str(r), f"storey {k}"), {})
+                     for k, r in enumerate(spec.drifts, start=1)]
+            figures.save(time_figure("inter-storey drifts", "drift [mm]", lines), "drifts.png")
     if spec.current is not None:
         ref = str(spec.current)
         lines = [(rec.column(ref), named(run, ref, "current command"), {})]
