@@ -187,6 +187,50 @@ def bouc_wen_advance(  # noqa: PLR0913 - Bouc-Wen's own parameters, broadcast; t
     return _advance(y, dx, beta, gamma, delta, n, m, envelope(beta, gamma, delta, n))
 
 
+def bouc_wen_advance_scalar(  # noqa: PLR0913 - Bouc-Wen's own parameters; the FMU calls it every step
+    y: float, dx: float, beta: float, gamma: float, delta: float, n: float, dx_max: float,
+    lam_dx_max: float = 0.5, cap: int = 64,
+) -> float:
+    """:func:`bouc_wen_advance` for one state, in plain floats (the FMU's step: numpy's per-call cost on
+    scalars was most of it). The same scheme, sub-step count and clamp, term by term; it agrees with the
+    broadcast version to rounding (tests/physics/test_bouc_wen_scalar.py). A float overflow (parameters far
+    outside a device's) hands the step to the broadcast version, whose inf/NaN semantics the shell checks."""
+    try:
+        return _advance_scalar(float(y), float(dx), float(beta), float(gamma), float(delta), float(n), dx_max,
+                               lam_dx_max, cap)
+    except (OverflowError, ZeroDivisionError):
+        with np.errstate(all="ignore"):
+            return float(bouc_wen_advance(y, dx, beta, gamma, delta, n, dx_max, lam_dx_max, cap))
+
+
+def _advance_scalar(  # noqa: PLR0913
+    y: float, dx: float, beta: float, gamma: float, delta: float, n: float, dx_max: float, lam_dx_max: float,
+    cap: int,
+) -> float:
+    lam_max = (abs(beta) + abs(gamma)) ** (1.0 / n) * abs(delta) ** ((n - 1.0) / n)
+    adx = abs(dx)
+    if adx == 0.0:
+        m = 1
+    else:
+        lam_term = adx * lam_max / lam_dx_max if math.isfinite(lam_dx_max) else 0.0
+        ratio = max(adx / dx_max, lam_term, 1.0)
+        m = cap if ratio >= cap else math.ceil(ratio)
+    total = beta + gamma
+    bound = abs(delta / total) ** (1.0 / n) if total > 0 else math.inf
+    h = dx / m
+    sign_h = (h > 0) - (h < 0)
+    floor = max(0.5 * abs(delta * h), _TINY)
+    half = 0.5 * h
+    for _ in range(m):
+        lam = (beta * ((y > 0) - (y < 0)) + gamma * sign_h) * max(abs(y), floor) ** (n - 1.0)
+        z = min(max(-lam * half, -_ZMAX), _ZMAX) + 1e-300
+        y_half = y + half * (delta - lam * y) * (math.expm1(z) / z)
+        lam = (beta * ((y_half > 0) - (y_half < 0)) + gamma * sign_h) * max(abs(y_half), floor) ** (n - 1.0)
+        z = min(max(-lam * h, -_ZMAX), _ZMAX) + 1e-300
+        y = min(max(y + h * (delta - lam * y) * (math.expm1(z) / z), -bound), bound)
+    return y
+
+
 def bouc_wen_states(  # noqa: PLR0913 - Bouc-Wen's own parameters, broadcast over parameter sets (hot kernel)
     x, beta, gamma, delta, n, dx_max: float, y0=0.0, lam_dx_max: float = 0.5, cap: int = 64
 ) -> np.ndarray:

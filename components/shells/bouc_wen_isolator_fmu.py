@@ -20,8 +20,8 @@ that records it reads it at t = 0), so runs that do not ask for it pay nothing.
 State: the dimensionless hysteretic variable y (y = 0 at start). ``do_step(t, h)``
 advances y from t to t + h with the inputs held (zero-order hold): the displacement
 increment is v * h, integrated in the displacement domain by the exponential midpoint
-scheme of bouc_wen_core.bouc_wen_advance (sub-steps of at most ``dx_max``, and at most
-0.5 / lam_max); the current at the start of the step sets beta(i), gamma(i). F read
+scheme of bouc_wen_core.bouc_wen_advance, in plain floats (``bouc_wen_advance_scalar``; sub-steps of
+at most ``dx_max``, and at most 0.5 / lam_max); the current at the start of the step sets beta(i), gamma(i). F read
 after the step uses the state y(t + h) and the inputs set at t + h, so F depends on the
 inputs (direct feedthrough through k, c, alpha(i)) and on the state.
 
@@ -52,7 +52,7 @@ from bouc_wen_core import (
     COEFFICIENT_DOCS,
     SYNTHETIC_DEFAULT,
     BoucWenCurrentModel,
-    bouc_wen_advance,
+    bouc_wen_advance_scalar,
     device_problem,
 )
 from fast_exchange import FastExchange
@@ -235,7 +235,7 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
         gamma = self.gamma_0 * i + self.gamma_1
         dx = self.v * step_size
         if dx != 0.0:
-            y = float(bouc_wen_advance(self.y, dx, beta, gamma, self.delta, self.n, self.dx_max))
+            y = bouc_wen_advance_scalar(self.y, dx, beta, gamma, self.delta, self.n, self.dx_max)
             if not math.isfinite(y):
                 self.log(f"hysteretic state became {y} at t = {t:.6g} s", Fmi2Status.error)
                 return False
@@ -243,8 +243,8 @@ class BoucWenIsolator(FastExchange, Fmi2Slave):
             self.y = y
             if not self._track_off:
                 return True
-            y_off = y if same else float(bouc_wen_advance(self.y_off, dx, self.beta_1, self.gamma_1, self.delta,
-                                                          self.n, self.dx_max))
+            y_off = y if same else bouc_wen_advance_scalar(self.y_off, dx, self.beta_1, self.gamma_1, self.delta,
+                                                           self.n, self.dx_max)
             if not math.isfinite(y_off):
                 self.log(f"hysteretic state at 0 A (F_off) became {y_off} at t = {t:.6g} s", Fmi2Status.error)
                 return False

@@ -8,7 +8,7 @@ setting the isolator unit's coefficients (SI, the FMU's names) from a plant-samp
   the coefficients it set;
 * ``plant_uncertainty.csv``: per strategy and criterion (J1-J9 over the benchmark baseline on the nominal plant,
   as criteria.csv) the nominal value and the median, 5 % and 95 % quantiles and count of valid runs over the
-  Latin-hypercube plants, per record;
+  Latin-hypercube plants, per record (a run that failed or is numerically invalid is left out and not counted);
 * ``sobol.csv``: per strategy, record, criterion (J3, J5) and axis, the first-order and total Sobol indices with
   their 95 % confidence half-widths (SALib), computed only when every run of the Saltelli design is valid.
 """
@@ -155,13 +155,15 @@ def write_design(folder: Path, study: Any) -> None:
 
 
 def _values(vraw: dict[tuple[str, str, str], dict[str, float] | None], strategy: str, record: str,
-            names: list[str], j: str, base: dict[str, float], j6_reference: dict[str, float]) -> np.ndarray:
+            names: list[str], j: str, base: dict[str, float], j6_reference: dict[str, float],
+            invalid: set[tuple[str, str, str]]) -> np.ndarray:
     """J of the strategy's runs on the named variants, normalised as criteria.csv (over the nominal plant's
-    baseline, J6 over the nominal J6 reference), NaN where a run failed."""
+    baseline, J6 over the nominal J6 reference), NaN where a run failed or is numerically invalid."""
     out = []
     for v in names:
         raw = vraw.get((record, strategy, v))
-        out.append(math.nan if raw is None else normalised(raw, base, j6_reference)[j])
+        bad = raw is None or (record, strategy, v) in invalid
+        out.append(math.nan if bad else normalised(raw, base, j6_reference)[j])
     return np.array(out, dtype=float)
 
 
@@ -178,6 +180,9 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
 
     def explained(k: int) -> float:
         return float(variances[:k].sum() / variances.sum())
+
+    # a run that ended but whose energy books do not close is not counted (its validity, read by variant_raw)
+    invalid = {(e.record, e.strategy, e.variant) for e in study.variant_runs if e.valid is False}
     spread_rows, sobol_rows = [], []
     table = []
     for r in study.records:
@@ -186,7 +191,7 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
             nominal = normalised(raw.get((r, s), {}), base, ref)
             for j in SPREAD_CRITERIA:
                 nom = nominal[j]
-                y = _values(vraw, s, r, lhs, j, base, ref) if lhs else np.array([])
+                y = _values(vraw, s, r, lhs, j, base, ref, invalid) if lhs else np.array([])
                 ok = y[np.isfinite(y)]
                 q = np.quantile(ok, [0.05, 0.5, 0.95]) if len(ok) else [math.nan] * 3
                 spread_rows.append([s, r, j, repr(nom), repr(float(q[1])), repr(float(q[0])), repr(float(q[2])),
@@ -198,10 +203,11 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
                 continue
             k_axes = min(spec.axes, len(variances))
             for j in SOBOL_CRITERIA:
-                y = _values(vraw, s, r, sob, j, base, ref)
+                y = _values(vraw, s, r, sob, j, base, ref, invalid)
                 if not np.all(np.isfinite(y)):
+                    bad = int(np.sum(~np.isfinite(y)))
                     sobol_rows.append([s, r, j, "", "", "", "", "", "",
-                                       f"not computed: {int(np.sum(~np.isfinite(y)))} of {len(y)} runs invalid"])
+                                       f"not computed: {bad} of {len(y)} runs failed or invalid"])
                     continue
                 ind = sobol_indices(y, k_axes, spec.seed)
                 for a in range(k_axes):
