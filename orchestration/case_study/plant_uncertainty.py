@@ -167,6 +167,22 @@ def _values(vraw: dict[tuple[str, str, str], dict[str, float] | None], strategy:
     return np.array(out, dtype=float)
 
 
+def _order_rows(vraw: dict[tuple[str, str, str], Any], strategies: list[str], record: str, names: list[str],
+                base: dict[str, float], ref: dict[str, float], invalid: set[tuple[str, str, str]]) -> list[list[str]]:
+    """The same plants under two strategies: on how many the first is lower, and the range of J_A / J_B."""
+    rows = []
+    for k, a in enumerate(strategies):
+        for b in strategies[k + 1:]:
+            for j in ("J3", "J4", "J5"):
+                ya, yb = (_values(vraw, x, record, names, j, base, ref, invalid) for x in (a, b))
+                both = np.isfinite(ya) & np.isfinite(yb)
+                if both.any():
+                    q = ya[both] / yb[both]
+                    rows.append([a, b, record, j, f"{int(np.sum(q < 1))} of {int(both.sum())}",
+                                 f"{float(q.min()):.4f} to {float(q.max()):.4f}"])
+    return rows
+
+
 def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str], Any],
                        raw: dict[tuple[str, str], dict[str, float]], baseline: str) -> list[Block]:
     """Write plant_uncertainty.csv and sobol.csv from the runs; the report's section on the plant's uncertainty.
@@ -184,10 +200,12 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
     # a run that ended but whose energy books do not close is not counted (its validity, read by variant_raw)
     invalid = {(e.record, e.strategy, e.variant) for e in study.variant_runs if e.valid is False}
     spread_rows, sobol_rows = [], []
-    table = []
+    table, order = [], []
+    sampled = [s for s in study.strategies if any(k[1] == s for k in vraw)]  # the strategies run on the plants
     for r in study.records:
         base, ref = raw.get((r, baseline), {}), raw.get((r, J6_REFERENCE), {})
-        for s in [s for s in study.strategies if any(k[1] == s for k in vraw)]:  # those run on the plants
+        order += _order_rows(vraw, sampled, r, lhs, base, ref, invalid)
+        for s in sampled:
             nominal = normalised(raw.get((r, s), {}), base, ref)
             for j in SPREAD_CRITERIA:
                 nom = nominal[j]
@@ -224,6 +242,13 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
         blocks += [Block("h", "Spread over the Latin-hypercube plants", level=3),
                    Block("table", header=["strategy", "record", "criterion", "nominal plant",
                                           "median [5 %, 95 %]", "valid runs"], rows=table)]
+    if order:
+        blocks += [Block("h", "Order on the same plants", level=3),
+                   Block("p", "Each pair of strategies on each Latin-hypercube plant: on how many plants the first has "
+                              "the lower criterion, and the range of the ratio J_A / J_B over the plants (the spread "
+                              "of one criterion alone mixes in what the plant does to every strategy alike)."),
+                   Block("table", header=["A", "B", "record", "criterion", "J_A < J_B on", "J_A / J_B"],
+                         rows=order)]
     if sob:
         atomic_write_text(folder / "sobol.csv", _csv(
             ["strategy", "record", "criterion", "axis", "axis_variance_share", "S1", "S1_conf", "ST", "ST_conf",

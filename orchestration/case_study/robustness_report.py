@@ -198,7 +198,7 @@ def robustness_blocks(folder: Path, study: CaseStudyRecord, raw: dict[tuple[str,
     blocks.append(Block("table", header=["strategy", "worst J3 change", "worst J4 change", "worst J5 change",
                                          "runs failed"], rows=body))
     if names:
-        blocks.append(Block("h", "Worst change of J3, J4, J5 per declared variant", level=3))
+        blocks.append(Block("h", "Worst change of J3, J4, J5 per variant", level=3))
         body = []
         for s in study.strategies:
             cells = []

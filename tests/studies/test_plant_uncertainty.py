@@ -80,3 +80,6 @@ def test_the_spread_and_the_indices_come_from_the_sampled_runs(study):
     assert not list((study / "runs").glob("elcentro-on-off--*")) and (study / "runs" / "elcentro-on-off").is_dir()
     report = (study / "report.md").read_text()
     assert "The plant's own uncertainty (sampled isolators)" in report and "Sobol indices" in report
+    by = {(r["strategy"], r["variant"]): float(r["J5"]) for r in rob if r["variant"].startswith("lhs-")}
+    lower = sum(by[("passive-off", v)] < by[("passive-on", v)] for v in ("lhs-001", "lhs-002", "lhs-003"))
+    assert f"| passive-off | passive-on | elcentro | J5 | {lower} of 3 |" in report
