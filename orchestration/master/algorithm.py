@@ -424,9 +424,9 @@ class CouplingAlgorithm:
         """``plan`` with the watched locals read last, after their unit's connected inputs carry their end-of-step
         values: in the unit's last propagation step when that one sets all of them, else in a step of their own.
 
-        FMI 2.0 declares no dependencies for a local variable, so it may depend on every input (the isolators'
-        F_off does, like their F). Read right after the step, it would pair the state at t + h with the inputs
-        the step used (the step means); read here, it is consistent with the outputs at t + h.
+        FMI 2.0 declares no dependencies for a local variable, so it may depend on every input, as a feedthrough
+        output does. Read right after the step, it would pair the state at t + h with the inputs the step used
+        (the step means); read here, it is consistent with the outputs at t + h.
         """
         plan = list(plan)
         for name, unit in self.units.items():

@@ -74,7 +74,7 @@ def test_a_bad_scenario_raises_every_problem(tmp_path):
         load_scenario(PROJECT / "scenarios" / "elcentro.yaml", ["simulation.stop_tme=1", "report.drift=1"])
     messages = {p.key: p.message for p in info.value.problems}
     assert messages == {"simulation.stop_tme": "unknown key (did you mean 'stop_time' or 'start_time'?)",
-                        "report.drift": "unknown key (did you mean 'drifts'?)"}
+                        "report.drift": "unknown key (did you mean 'drifts' or 'drift_unit'?)"}
 
 
 def test_unit_messages_reach_logging_and_the_api_prints_nothing(tmp_path, capsys):

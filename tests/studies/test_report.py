@@ -144,7 +144,7 @@ def test_a_misspelt_role_in_a_file_is_refused_with_its_line_and_a_suggestion(tmp
         load_scenario(path)
     (problem,) = info.value.problems
     assert (problem.key, problem.file, problem.line) == ("report.drfits", str(path), 3)
-    assert problem.message == "unknown key (did you mean 'drifts'?)"
+    assert problem.message == "unknown key (did you mean 'drifts' or 'drift_unit'?)"
 
 
 def test_the_engines_summary_is_every_variables_peak_and_a_hook_cannot_replace_its_keys():
