@@ -2138,6 +2138,74 @@ def stop37_cases(base: Path) -> list[Case]:
     return cases
 
 
+STOP42 = "42/"
+"""Prefix of these classes: ``--only 42/`` runs them alone."""
+
+
+def stop42_cases(base: Path) -> list[Case]:
+    """The inputs of class 42/: the run figures' units and storey heights, the sampled plants of a benchmark
+    (robustness.plant_samples: its file, sizes, axes, seed and unit), robustness.strategies and ``set`` variants."""
+    cases: list[Case] = []
+    for key, value in (("acceleration_unit", "ft/s2"), ("acceleration_unit", "G"), ("acceleration_unit", "nan"),
+                       ("acceleration_unit", "1"), ("acceleration_unit", "../x"), ("drift_unit", "ratio"),
+                       ("drift_unit", "''"), ("storey_heights", "[nan, 3, 3]"), ("storey_heights", "[inf, 3, 3]"),
+                       ("storey_heights", "[-1, 3, 3]"), ("storey_heights", "[0, 3, 3]"),
+                       ("storey_heights", "['3', 3, 3]"), ("storey_heights", "[true, 3, 3]"),
+                       ("storey_heights", "[3]"), ("storey_heights", "[" + ", ".join(["3"] * 10000) + "]"),
+                       ("storey_heights", "../x")):
+        sets = [f"report.{key}={value}"]
+        if key == "storey_heights":
+            sets.append("report.drift_unit=ratio")
+        cases.append(Case(STOP42 + "figure units", f"{key}={value}"[:70], "run.py", _elc(*sets), verify=_exit_2))
+    nominal = SC / "nominal_plant_elcentro.yaml"
+    study = [str(SC / "controller_benchmark.yaml"), "--set", f"records={{elcentro: {nominal}}}",
+             "--set", "strategies=[passive-off, passive-on]", "--set", f"overrides=[{SHORT}]",
+             "--set", "reference={enabled: false}", "--out", "out", "--quiet", "--workers", "1"]
+    samples = SC / "plants" / "plant_samples_bouc_wen-joint.yaml"
+
+    made = base / "stop42"
+    made.mkdir(parents=True, exist_ok=True)
+    good = samples.read_text()
+
+    def sample_file(name: str, text: str) -> str:
+        (made / name).write_text(text)
+        return str(made / name)
+
+    files = {  # the file key is relative to the study file (scenarios/); these are absolute or resolve from there
+        "missing": "none.yaml", "a folder": str(SC), "/dev/zero": "/dev/zero",
+        "a path with ../": "../../../../../../etc/passwd", "a name of 300 bytes": "é" * 150 + ".yaml",
+        "not YAML": sample_file("notyaml.yaml", "{{{ not yaml"),
+        "another kind": sample_file("other.yaml", "kind: other\n"),
+        "a NaN coefficient": sample_file("nan.yaml", good.replace("k_0: ", "k_0: .nan #", 2)),
+        "no samples": sample_file("none_listed.yaml", good.split("samples:")[0] + "samples: []\n"),
+        "no samples key": sample_file("nokey.yaml", good.split("samples:")[0]),
+    }
+    for name, path in files.items():
+        cases.append(Case(STOP42 + "plant samples", f"file: {name}", "study.py",
+                          [*study, "--set", f"robustness={{plant_samples: {{file: '{path}', lhs: 2}}}}"],
+                          verify=_exit_2))
+    for key, value in (("lhs", "-1"), ("lhs", "1"), ("lhs", "'2'"), ("lhs", "1000000000"), ("lhs", ".nan"),
+                       ("sobol", "3"), ("sobol", "-2"), ("sobol", "1000000000"), ("sobol", ".inf"), ("axes", "0"),
+                       ("axes", "11"), ("axes", "99"), ("seed", "-1"), ("seed", "1099511627776"), ("seed", "1.5"),
+                       ("unit", "../isolator"), ("unit", "''"), ("unit", "ghost"), ("lhs", "0")):
+        extra = "" if key in ("sobol", "axes") else ", sobol: 0" if key == "lhs" else ""
+        spec = f"{{file: {samples}, lhs: 2, sobol: 2, axes: 1, {key}: {value}}}" if key in ("sobol", "axes") else \
+            f"{{file: {samples}, lhs: 2{extra}, {key}: {value}}}"
+        cases.append(Case(STOP42 + "plant samples", f"{key}: {value}"[:70], "study.py",
+                          [*study, "--set", f"robustness={{plant_samples: {spec}}}"], verify=_exit_2))
+    for name, rob in (("strategies an unknown one", "{strategies: [nope], variants: {lag: {current_lag: 0.01}}}"),
+                      ("strategies a number", "{strategies: 5, variants: {lag: {current_lag: 0.01}}}"),
+                      ("set NaN", "{variants: {v: {set: {isolator.k_0: .nan}}}}"),
+                      ("set on the controller", "{variants: {v: {set: {controller.i_max: 1.0}}}}"),
+                      ("set a String parameter", "{variants: {v: {set: {isolator.beyond_range: 1.0}}}}"),
+                      ("set a parameter the plant lacks", "{variants: {v: {set: {isolator.nope: 1.0}}}}"),
+                      ("set a name with ../", "{variants: {v: {set: {'../x.y': 1.0}}}}"),
+                      ("set text", "{variants: {v: {set: {isolator.k_0: 'big'}}}}")):
+        cases.append(Case(STOP42 + "set variants", name, "study.py", [*study, "--set", f"robustness={rob}"],
+                          verify=_exit_2))
+    return cases
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -2149,7 +2217,8 @@ def build_cases(seed: int, base: Path) -> list[Case]:
     return [*scenario_cases(rng, 110), *yaml_text_cases(), *override_cases(), *record_cases(rng, 30), *fmu_cases(),
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
             *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
-            *leftover_cases(base), *hardening_cases(base), *stop37_cases(base)]
+            *leftover_cases(base), *hardening_cases(base), *stop37_cases(base),
+            *stop42_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

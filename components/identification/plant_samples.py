@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -93,6 +94,11 @@ def load_plant_samples(path: str | os.PathLike, i_max: float = 3.0) -> tuple[Bou
                                                                              list[BoucWenCurrentModel]]:
     """(nominal, samples) of a file written by :func:`write_plant_samples`; PlantSampleError if unusable."""
     path = Path(path)
+    try:  # a device, FIFO or folder is refused before it is read: /dev/zero would never end
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise PlantSampleError(f"{path}: not a regular file (a plant-sample file is YAML)")
+    except OSError as exc:
+        raise PlantSampleError(f"{path}: cannot read a plant-sample file ({exc.strerror or exc})") from None
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:

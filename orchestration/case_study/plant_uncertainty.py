@@ -48,24 +48,33 @@ SOBOL_CRITERIA = ("J3", "J5")
 SPREAD_CRITERIA = CRITERIA
 
 
+Drawn = tuple[PlantDistribution, list[tuple[str, str, np.ndarray, np.ndarray]], list[tuple[str, str]]]
+
+
 @functools.lru_cache(maxsize=8)
-def _drawn(path: str, mtime_ns: int, spec_json: str) -> tuple[PlantDistribution, list[tuple[str, str, np.ndarray,
-                                                                                                np.ndarray]]]:
-    """(distribution, [(variant, design, xi, coefficients)]) of a plant-sample file and a spec (cached)."""
+def _drawn(path: str, mtime_ns: int, spec_json: str) -> Drawn:
+    """(distribution, [(variant, design, xi, coefficients)], [(variant, why it is no device)]) of a plant-sample
+    file and a spec, computed once per file version and spec (every run's plan asks for them)."""
     spec = PlantSamplingSpec.model_validate_json(spec_json)
     nominal, samples = load_plant_samples(path)
     dist = distribution(nominal, samples)
+    if spec.sobol and spec.axes > len(dist.variances):
+        raise ValueError(f"axes = {spec.axes}: the file's samples vary along {len(dist.variances)} principal axes")
+    lhs_names, sobol_names = spec.names()
     drawn: list[tuple[str, str, np.ndarray, np.ndarray]] = []
     if spec.lhs:
         xi = lhs_normal(spec.lhs, len(dist.variances), spec.seed)
-        drawn += [(f"lhs-{k + 1:03d}", "lhs", x, c) for k, (x, c) in enumerate(zip(xi, dist.coefficients(xi),
-                                                                                     strict=True))]
+        drawn += [(n, "lhs", x, c) for n, x, c in zip(lhs_names, xi, dist.coefficients(xi), strict=True)]
     if spec.sobol:
-        k_axes = min(spec.axes, len(dist.variances))
-        xi = sobol_design(spec.sobol, k_axes, spec.seed)
-        drawn += [(f"sobol-{k + 1:04d}", "sobol", x, c) for k, (x, c) in enumerate(zip(xi, dist.coefficients(xi),
-                                                                                         strict=True))]
-    return dist, drawn
+        xi = sobol_design(spec.sobol, spec.axes, spec.seed)
+        drawn += [(n, "sobol", x, c) for n, x, c in zip(sobol_names, xi, dist.coefficients(xi), strict=True)]
+    no_device = []
+    for name, _, _, c in drawn:
+        try:
+            device_problem(BoucWenCurrentModel(**dict(zip(COEFFICIENTS, c, strict=True))), beyond_range="stop")
+        except ParameterError as exc:
+            no_device.append((name, str(exc)))
+    return dist, drawn, no_device
 
 
 def _problem(study: Any, message: str, *key: Any) -> Problem:
@@ -95,20 +104,14 @@ def drawn(study: Any) -> tuple[PlantDistribution, list[tuple[str, str, np.ndarra
             raise ScenarioError([_problem(study, "sobol needs SALib (pip install -e \".[uncertainty]\")",
                                           "sobol")]) from None
     try:
-        dist, plants = _drawn(str(path), path.stat().st_mtime_ns, spec.model_dump_json())
+        dist, plants, no_device = _drawn(str(path), path.stat().st_mtime_ns, spec.model_dump_json())
     except OSError as exc:
         raise ScenarioError([_problem(study, f"cannot read {path} ({exc.strerror or exc})", "file")]) from None
     except (PlantSampleError, ValueError) as exc:
-        raise ScenarioError([_problem(study, str(exc), "file")]) from None
-    problems = []
-    for name, _, _, c in plants:
-        try:
-            device_problem(BoucWenCurrentModel(**dict(zip(COEFFICIENTS, c, strict=True))), beyond_range="stop")
-        except ParameterError as exc:
-            problems.append(_problem(study, f"plant {name} is no device ({exc}); another seed draws other plants",
-                                     "seed"))
-    if problems:
-        raise ScenarioError(problems)
+        raise ScenarioError([_problem(study, str(exc), "axes" if str(exc).startswith("axes") else "file")]) from None
+    if no_device:
+        raise ScenarioError([_problem(study, f"plant {name} is no device ({why}); another seed draws other plants",
+                                      "seed") for name, why in no_device])
     return dist, plants
 
 
@@ -117,11 +120,18 @@ def sampled_variants(study: Any) -> dict[str, VariantSpec]:
     rob = study.spec.robustness
     if rob is None or rob.plant_samples is None:
         return {}
-    unit = rob.plant_samples.unit
-    _, plants = drawn(study)
-    return {name: VariantSpec(label=f"{design} plant {name.partition('-')[2].lstrip('0')}",
-                              set={f"{unit}.{n}": float(v) for n, v in zip(COEFFICIENTS, c, strict=True)})
-            for name, design, _, c in plants}
+    drawn(study)  # the checks, each time (cached draw)
+    path = samples_path(study)
+    return dict(_variants(str(path), path.stat().st_mtime_ns, rob.plant_samples.model_dump_json()))
+
+
+@functools.lru_cache(maxsize=8)
+def _variants(path: str, mtime_ns: int, spec_json: str) -> tuple[tuple[str, VariantSpec], ...]:
+    unit = PlantSamplingSpec.model_validate_json(spec_json).unit
+    _, plants, _ = _drawn(path, mtime_ns, spec_json)
+    return tuple((name, VariantSpec(label=f"{design} plant {name.partition('-')[2].lstrip('0')}",
+                                    set={f"{unit}.{n}": float(v) for n, v in zip(COEFFICIENTS, c, strict=True)}))
+                 for name, design, _, c in plants)
 
 
 # -- after the runs ---------------------------------------------------------------------------------------------
@@ -219,7 +229,7 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
                                   f"{len(ok)}/{len(y)}"])
             if not sob:
                 continue
-            k_axes = min(spec.axes, len(variances))
+            k_axes = spec.axes
             for j in SOBOL_CRITERIA:
                 y = _values(vraw, s, r, sob, j, base, ref, invalid)
                 if not np.all(np.isfinite(y)):
@@ -256,7 +266,7 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
         body = [[row[0], row[1], row[2], str(row[3]), fmt(float(row[4])),
                  f"{fmt(float(row[5]))} ± {fmt(float(row[6]))}", f"{fmt(float(row[7]))} ± {fmt(float(row[8]))}"]
                 if row[3] != "" else [row[0], row[1], row[2], "–", "–", row[9], "–"] for row in sobol_rows]
-        k_axes = min(spec.axes, len(variances))
+        k_axes = spec.axes
         blocks += [Block("h", "Sobol indices on the principal axes", level=3),
                    Block("p", f"SALib's Saltelli design, N = {spec.sobol}, on the first {k_axes} principal axes "
                               f"({100 * explained(k_axes):.0f} % of the standardised variance; the others held at 0); "

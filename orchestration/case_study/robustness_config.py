@@ -149,6 +149,20 @@ class PlantSamplingSpec(_Strict):
     axes: StrictInt = Field(4, ge=1, le=12)  # principal axes the Sobol design varies (the others at 0)
     seed: StrictInt = Field(1, ge=0, le=2**32 - 1)
 
+    @field_validator("unit")
+    @classmethod
+    def _unit_name(cls, value: str) -> str:
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", value):
+            raise ValueError(f"unit {value!r}: a unit name of the scenario (letters, digits, '_')")
+        return value
+
+    def names(self, axes: int | None = None) -> tuple[list[str], list[str]]:
+        """(Latin-hypercube names lhs-001 ..., Saltelli names sobol-0001 ...) for ``axes`` principal axes
+        (default ``self.axes``): the one place the sampled plants are named."""
+        k = self.axes if axes is None else axes
+        return ([f"lhs-{j:03d}" for j in range(1, self.lhs + 1)],
+                [f"sobol-{j:04d}" for j in range(1, self.sobol * (k + 2) + 1)])
+
     @field_validator("sobol")
     @classmethod
     def _power_of_two(cls, value: int) -> int:
@@ -199,8 +213,7 @@ class RobustnessSpec(_Strict):
     def variant_names(self) -> list[str]:
         """Every variant's name: the declared ones, then the sampled plants' (lhs-001 ..., sobol-0001 ...)."""
         names = list(self.variants)
-        ps = self.plant_samples
-        if ps is not None:
-            names += [f"lhs-{k:03d}" for k in range(1, ps.lhs + 1)]
-            names += [f"sobol-{k:04d}" for k in range(1, ps.sobol * (ps.axes + 2) + 1)]
+        if self.plant_samples is not None:
+            lhs, sobol = self.plant_samples.names()
+            names += lhs + sobol
         return names

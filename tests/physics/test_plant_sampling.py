@@ -49,7 +49,9 @@ def test_drawn_plants_have_the_bootstrap_covariance_and_keep_the_fixed_coefficie
     np.testing.assert_allclose(theta[:, free].std(axis=0, ddof=1), rows[:, free].std(axis=0, ddof=1), rtol=0.05)
     np.testing.assert_allclose(np.corrcoef(theta[:, free], rowvar=False), np.corrcoef(rows[:, free], rowvar=False),
                                atol=0.05)
-    np.testing.assert_allclose(theta.mean(axis=0), dist.nominal, atol=0.1 * rows.std(axis=0, ddof=1).max())
+    # per coefficient: the draw's mean within 5 % of its own spread of the nominal fit (the bootstrap mean is
+    # 0.1 to 0.19 of a spread away for six coefficients, so a draw centred on it would fail here)
+    assert np.all(np.abs(theta.mean(axis=0) - dist.nominal)[free] <= 0.05 * dist.std[free])
 
 
 def test_the_first_axes_carry_the_largest_share_and_the_rest_stay_at_zero(shipped):
@@ -73,3 +75,12 @@ def test_sobol_indices_of_a_linear_model_equal_its_variance_shares():
         err = np.abs(ind[key] - exact)
         assert np.all(err < 0.05), (key, ind[key])
         assert np.all(err < 3 * ind[f"{key}_conf"] + 0.01), (key, err, ind[f"{key}_conf"])
+
+
+@pytest.mark.parametrize("path", ["/dev/zero", "/"])
+def test_a_device_or_a_folder_is_refused_before_it_is_read(path):
+    """/dev/zero read as a sample file would never end: it is refused by its kind, at once."""
+    from components.identification.plant_samples import PlantSampleError
+
+    with pytest.raises(PlantSampleError, match="not a regular file"):
+        load_plant_samples(path)

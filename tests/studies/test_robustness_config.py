@@ -255,3 +255,22 @@ def test_variant_strategies_must_be_the_studys(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "robustness.strategies: 'lyapunov' not among the study's strategies (passive-off, sosm)" in err
     assert "Traceback" not in err and not out.exists()
+
+
+def test_more_sobol_axes_than_the_samples_vary_along_and_a_unit_that_is_a_path_are_exit_2(tmp_path, capsys):
+    """The shipped samples vary along 10 principal axes: axes = 11 would name plants the design does not draw."""
+    samples = PROJECT / "scenarios" / "plants" / "plant_samples_bouc_wen-joint.yaml"
+    for spec, key, said in ((f"{{file: {samples}, lhs: 0, sobol: 2, axes: 11}}", "robustness.plant_samples.axes",
+                             "vary along 10 principal axes"),
+                            (f"{{file: {samples}, lhs: 2, unit: ../isolator}}", "robustness.plant_samples.unit",
+                             "a unit name of the scenario")):
+        path, out = _study(tmp_path, f"""\
+            strategies: [passive-off, passive-on]
+            records: {{elcentro: {PROJECT / 'scenarios' / 'nominal_plant_elcentro.yaml'}}}
+            robustness:
+              plant_samples: {spec}
+            """)
+        assert main([str(path)]) == 2
+        err = capsys.readouterr().err
+        assert key in err and said in err, err
+        assert "Traceback" not in err and not out.exists()
