@@ -27,8 +27,14 @@ EPILOG = ("exit codes: 0 every job succeeded; 1 some jobs failed or the study wa
 
 
 def _study(argv: list[str] | None) -> int:
+    from orchestration.building_studies.study_file import declares_section
     from orchestration.case_study.case_run import main as study_main
+    from orchestration.ida_study.ida_config import BENCHMARK_KEY
 
+    if declares_section(sys.argv[1:] if argv is None else argv, BENCHMARK_KEY):  # a suite benchmark
+        from orchestration.suite_benchmark.benchmark_run import main as benchmark_main
+
+        return with_epilog(benchmark_main, argv, EPILOG)
     return with_epilog(study_main, argv, EPILOG)
 
 

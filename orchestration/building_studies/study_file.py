@@ -14,6 +14,26 @@ from orchestration.master.yaml_source import YAML_BOOLEANS, load_tree
 REPLACED_KEYS = frozenset({"records"})  # a study that extends another and names records runs those only
 
 
+def declares_section(argv: list[str], key: str) -> bool:
+    """Whether the study a command line names (its first positional argument) has a top-level ``key`` section,
+    or the line sets one with ``--set key...``; False if the file cannot be read (the tool it goes to says why)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("study", nargs="?")
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    known, _ = parser.parse_known_args(argv)
+    if any(o.split("=", 1)[0].strip().split(".")[0] == key for o in known.overrides):
+        return True
+    if known.study is None:
+        return False
+    try:
+        data, _ = load_tree(Path(known.study), replace=REPLACED_KEYS)
+    except Exception:
+        return False
+    return isinstance(data, dict) and key in data
+
+
 def key_files(study_file: Path) -> dict:
     """Which file of an ``extends`` chain wrote each key of a study file (relative paths are relative to it), as
     it reads now; empty if it cannot be read (the paths are then relative to the study file). For ``--resume``."""

@@ -251,7 +251,7 @@ def _tuning(study: LoadedStudy) -> StrategyTuningSpec:
     return study.spec.strategy_tuning
 
 
-def _start(strategy: Strategy, unit_starts: Mapping[str, Any], i_max: float) -> list[float] | None:
+def start_point(strategy: Strategy, unit_starts: Mapping[str, Any], i_max: float) -> list[float] | None:
     """The entry's own setting (its parameters, else the FMU's start values) in the unit cube, if inside it."""
     u = []
     for name, rng in strategy.entry.tunable.items():
@@ -308,7 +308,7 @@ def plan_target(study: LoadedStudy, name: str, k: int, gains: dict[str, float] |
     limit = strategy.entry.parameters.get(strategy.limit_parameter() or "i_max", study.spec.i_max)
     i_limit = study.spec.i_max if limit == I_MAX or not isinstance(limit, int | float) else float(limit)
     starts = {n: v.start for n, v in unit.variables.items()}
-    return Target(strategy, integer, i_limit, _start(strategy, starts, study.spec.i_max), plans)
+    return Target(strategy, integer, i_limit, start_point(strategy, starts, study.spec.i_max), plans)
 
 
 def plan_targets(study: LoadedStudy) -> dict[str, Target]:
@@ -395,17 +395,24 @@ def tune_target(target: Target, tuning: StrategyTuningSpec, obj: ObjectiveSpec, 
 
 
 # -- the strategy file written -------------------------------------------------------------------------------------
+def entry_document(s: Strategy, parameters: Mapping[str, Any], out: Path) -> dict[str, Any]:
+    """A strategy's entry with ``parameters`` set on its own, labelled "(tuned)", as a strategy file ``out``
+    writes it (``fmu`` relative to ``out``'s folder if both lie below one folder other than the root)."""
+    entry: StrategyEntry = s.entry.model_copy(update={
+        "label": f"{s.label} (tuned)", "parameters": {**s.entry.parameters, **parameters}, "tuned": None})
+    doc = entry.model_dump(mode="json", exclude_defaults=True)
+    if s.fmu_path is not None:
+        folder = out.parent.resolve()
+        near = Path(os.path.commonpath([s.fmu_path, folder])) != Path(folder.anchor)
+        doc["fmu"] = os.path.relpath(s.fmu_path, folder) if near else str(s.fmu_path)
+    return doc
+
+
 def tuned_entry(target: Target, result: dict[str, Any], study: LoadedStudy, out: Path) -> dict[str, Any]:
     """The tuned entry as written (``fmu`` relative to ``out``'s folder), with what it was tuned on."""
     tuning = _tuning(study)
     s = target.strategy
-    entry: StrategyEntry = s.entry.model_copy(update={
-        "label": f"{s.label} (tuned)", "parameters": {**s.entry.parameters, **result["parameters"]}, "tuned": None})
-    doc = entry.model_dump(mode="json", exclude_defaults=True)
-    if s.fmu_path is not None:  # relative to the file written if both lie below one folder other than the root
-        folder = out.parent.resolve()
-        near = Path(os.path.commonpath([s.fmu_path, folder])) != Path(folder.anchor)
-        doc["fmu"] = os.path.relpath(s.fmu_path, folder) if near else str(s.fmu_path)
+    doc = entry_document(s, result["parameters"], out)
     doc["tuned"] = {
         "from": f"{s.name} ({shown_path(s.file)})", "study": shown_path(study.path), "records": tuning.records,
         "scenarios": {r: shown_path(study.scenario_path(r)) for r in tuning.records},
@@ -453,21 +460,9 @@ def output_path(study: LoadedStudy) -> Path:
 def declares_tuning(argv: list[str] | None) -> bool:
     """Whether the study named on a ``tune.py`` command line has a ``strategy_tuning:`` section (or a ``--set`` of
     one): then this tuner runs, else the SOSM gain tuning (unchanged). False if the file cannot be read."""
-    from orchestration.building_studies.study_file import REPLACED_KEYS
+    from orchestration.building_studies.study_file import declares_section
 
-    parser = argparse.ArgumentParser(add_help=False)
-    parser.add_argument("study", nargs="?")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
-    known, _ = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
-    if any(o.split("=", 1)[0].strip().split(".")[0] == KEY for o in known.overrides):
-        return True
-    if known.study is None:
-        return False
-    try:
-        data, _ = load_tree(Path(known.study), replace=REPLACED_KEYS)
-    except Exception:  # the SOSM path says what is wrong with it
-        return False
-    return isinstance(data, dict) and KEY in data
+    return declares_section(sys.argv[1:] if argv is None else argv, KEY)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

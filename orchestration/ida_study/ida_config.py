@@ -49,6 +49,7 @@ QUANTITIES = {
 RATIO_QUANTITIES = ("drift_ratio", "collapse")
 
 
+BENCHMARK_KEY = "benchmark"  # the section of a suite benchmark (orchestration.suite_benchmark), run by study.py
 MAX_LEVELS = 1000
 """Most intensity levels of a ladder (each is a run per record component and strategy)."""
 
@@ -138,6 +139,7 @@ class IdaSpec(_Strict):
     description: str = ""
     scenario: str = "isolated_building.yaml"  # the system; each run sets ground.record, scale and time_scale
     suite: str | FolderSuite
+    events: list[str] | None = None  # the suite's records (events) to run, by id (FF01, ...); None: every one
     time_scale: float = Field(1.0, gt=0.0)  # a record sample at tau plays at time_scale * tau
     window: WindowSpec = Field(default_factory=WindowSpec)
     intensity: IntensitySpec
@@ -163,6 +165,15 @@ class IdaSpec(_Strict):
         if isinstance(value, str) and value not in KNOWN_SUITES:
             raise ValueError(f"unknown suite {value!r} (known: {', '.join(KNOWN_SUITES)}; or a folder: "
                              "{folder: PATH})")
+        return value
+
+    @field_validator("events")
+    @classmethod
+    def _events(cls, value: list[str] | None) -> list[str] | None:
+        if value is not None and not value:
+            raise ValueError("events lists no record: leave it out to run every record of the suite")
+        if value is not None and len(set(value)) != len(value):
+            raise ValueError(f"events are named twice: {value}")
         return value
 
     @field_validator("strategies")
@@ -279,6 +290,10 @@ def load_ida(path: Path | str, overrides: tuple[str, ...] = ()) -> tuple[LoadedI
     if not isinstance(data, dict):
         return None, [Problem("an IDA study file is a mapping of keys", "", str(path))], data
     apply_overrides(data, lines, overrides)
+    if BENCHMARK_KEY in data:
+        file, line = lines.get((BENCHMARK_KEY,), (str(path), None))
+        return None, [Problem("this file is a suite benchmark (it has 'benchmark'): run it with study.py, which "
+                              "tunes on its training events and scores on the others", BENCHMARK_KEY, file, line)], data
     try:
         spec = IdaSpec.model_validate(data)
     except ValidationError as exc:

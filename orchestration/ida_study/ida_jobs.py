@@ -103,12 +103,13 @@ def residual_drifts(ts: dict[str, Any], storeys: dict[str, list[float]] | None) 
 
 
 def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """One IDA run: the plan and its files, at the scale of its :class:`IdaInputs`; an :class:`IdaRunResult`."""
+    """One IDA run: the plan and its files, at the scale of its :class:`IdaInputs` (and the payload's
+    ``parameters``, unit -> name -> value, set on top: a tuner's setting); an :class:`IdaRunResult`."""
     from orchestration.building_studies.run_metrics import run_metrics
     from orchestration.master.session import run_plan
 
     inputs = IdaInputs.from_json(payload)
-    plan, _ = job_plan(payload, {"ground": {"scale": inputs.scale}})
+    plan, _ = job_plan(payload, {**payload.get("parameters", {}), "ground": {"scale": inputs.scale}})
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="mre-cosim-ida-") as tmp:
         outcome = run_plan(plan, Path(tmp) / "run", plots=False, progress=False)

@@ -132,6 +132,21 @@ def _suite(path: Path, spec: IdaSpec | None, raw: Any, problems: list[Problem], 
     return []
 
 
+def _chosen_events(records: list[SuiteRecord], events: list[str] | None, loaded: LoadedIda,
+                   problems: list[Problem]) -> list[SuiteRecord]:
+    """The components of the records (events) ``events`` names, both components of each (every one for None);
+    an unknown name is a problem at its key."""
+    if events is None or not records:
+        return records
+    known = list(dict.fromkeys(r.record for r in records))
+    for k, name in enumerate(events):
+        if name not in known:
+            file, line = loaded.lines.get(("events", k)) or loaded.lines.get(("events",), (str(loaded.path), None))
+            problems.append(Problem(f"unknown record {name!r} (the suite's: {', '.join(known)})", f"events.{k}",
+                                    file, line))
+    return [r for r in records if r.record in events]
+
+
 def _gain_sets(loaded: LoadedIda, used: set[str | None], problems: list[Problem]) -> dict[str, dict[str, Any]]:
     """Gain set (``sosm``, ``sosm-fig15``) the named strategies use -> its gains file's document (problems
     appended: a missing or invalid file, gains tuned for another current limit)."""
@@ -272,6 +287,7 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
     records = _suite(path, spec, raw, problems, loaded.base_dir("suite", "folder") if loaded is not None else None)
     if spec is None or loaded is None:
         raise ScenarioError(problems)
+    records = _chosen_events(records, spec.events, loaded, problems)
     scenario = loaded.resolve(spec.scenario, "scenario")
     common = (*spec.overrides, f"isolator.i_max={spec.i_max!r}", f"controller.i_max={spec.i_max!r}",
               f"ground.time_scale={spec.time_scale!r}")
