@@ -1,6 +1,7 @@
 """A suite benchmark's file: an IDA study (suite, window, intensity, strategies) with a ``benchmark:`` section.
 
-The section (:class:`SuiteBenchmarkSpec`) says which events train the tuner (a list, or a seeded draw of a count),
+The section (:class:`SuiteBenchmarkSpec`) says which events train the tuner (``train``: a list, or a count drawn
+with ``split_seed``),
 which are scored (default: every other event), which strategies are tuned, with what budget, seed and objective,
 and which criteria the verdict compares. Read with the project's YAML loader (file and line of every key), every
 problem of the IDA part and of the section collected together.
@@ -11,7 +12,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictInt,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from orchestration.building_studies.study_file import apply_overrides
 from orchestration.case_study.case_config import ObjectiveSpec
@@ -27,10 +37,9 @@ class SuiteBenchmarkSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    train_events: list[str] | None = None  # the suite's records the tuner sees (both components of each)
-    train_count: int | None = Field(None, ge=1)  # or: this many records drawn with split_seed
+    train: list[str] | StrictInt  # the records the tuner sees (both components of each), or how many split_seed draws
     split_seed: int = Field(1, ge=0, le=2**32 - 1)
-    score_events: list[str] | None = None  # the records scored (default: every record not trained on)
+    score: list[str] | None = None  # the records scored (default: every record not trained on)
     overlap: StrictBool = False  # true: training records may be scored too (in-sample, declared on purpose)
     tune: list[str]  # strategies tuned, each with tunable: ranges; scored as <name>-tuned
     budget: int = Field(16, ge=1, le=100_000)  # settings per strategy, each a run per training component and level
@@ -57,15 +66,17 @@ class SuiteBenchmarkSpec(BaseModel):
                              "criteria lists none")
         return value
 
+    @field_validator("train", "score")
+    @classmethod
+    def _records(cls, value: list[str] | int | None) -> list[str] | int | None:
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError(f"name records, each once: {value}")
+        if isinstance(value, int) and value < 1:
+            raise ValueError(f"a count of training records must be at least 1, got {value}")
+        return value
+
     @model_validator(mode="after")
     def _split(self) -> SuiteBenchmarkSpec:
-        if (self.train_events is None) == (self.train_count is None):
-            raise ValueError("give the training records as train_events: [...] or as train_count: N (drawn with "
-                             "split_seed), one of the two")
-        for key in ("train_events", "score_events"):
-            names = getattr(self, key)
-            if names is not None and (not names or len(set(names)) != len(names)):
-                raise ValueError(f"{key} must name records, each once: {names}")
         o = self.objective
         if o.w_saturation or o.w_zero or o.w_mean_current:
             raise ValueError("objective: the current terms (w_saturation, w_zero, w_mean_current) are not measured "
@@ -98,8 +109,8 @@ def load_benchmark(path: Path | str, overrides: tuple[str, ...] = ()
     if problems or spec is None or bench is None:
         raise ScenarioError(problems)
     if spec.events is not None:
-        raise ScenarioError(Problem("a suite benchmark chooses its records with benchmark.train_events and "
-                                    "benchmark.score_events, not events", "events", *lines.get(("events",),
+        raise ScenarioError(Problem("a suite benchmark chooses its records with benchmark.train and "
+                                    "benchmark.score, not events", "events", *lines.get(("events",),
                                                                                                (str(path), None))))
     if "passive-off" not in spec.strategy_names:
         raise ScenarioError(Problem("strategies must include passive-off: every criterion is against it",

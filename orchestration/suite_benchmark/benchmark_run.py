@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import json
 import math
 import sys
 import time
@@ -88,8 +89,7 @@ def the_split(loaded: LoadedIda, bench: SuiteBenchmarkSpec) -> EventSplit:
     if problems:
         raise ScenarioError(problems)
     events = list(dict.fromkeys(r.record for r in records))
-    split, problems = split_events(events, bench.train_events, bench.train_count, bench.split_seed,
-                                   bench.score_events, bench.overlap)
+    split, problems = split_events(events, bench.train, bench.split_seed, bench.score, bench.overlap)
     if split is None:
         raise ScenarioError(_located(loaded, problems))
     return split
@@ -121,7 +121,7 @@ def enough_records(split: EventSplit, scored: list[str], bench: SuiteBenchmarkSp
         raise ScenarioError(Problem(
             f"{len(split.score)} scored records cannot carry the verdict: {family} paired comparisons "
             f"(Holm, alpha {bench.alpha:g}) need at least {need} records for the first to pass. Score more records, "
-            "or compare fewer strategies or criteria", "benchmark.score_events", *_at(loaded, "benchmark")))
+            "or compare fewer strategies or criteria", "benchmark.score", *_at(loaded, "benchmark")))
 
 
 def training_study(loaded: LoadedIda, bench: SuiteBenchmarkSpec, split: EventSplit) -> PreparedIda:
@@ -190,8 +190,19 @@ def criteria_csv(rows: list[dict[str, str]], level: float, strategies: list[str]
     return buf.getvalue()
 
 
+def scoring_times(folder: Path) -> tuple[list[float], list[float]]:
+    """Each scored job's wall time (fork to result) and its run's own (``run_plan``) [s], from ``jobs/``."""
+    jobs, runs = [], []
+    for p in sorted((folder / "jobs").glob("*.json")):
+        d = json.loads(p.read_text())
+        jobs.append(float(d.get("wall_time_s") or 0.0))
+        runs.append(float((d.get("value") or {}).get("run_wall_time_s") or 0.0))
+    return jobs, runs
+
+
 def efficiency(run_times: list[float], wall: float, workers: int) -> float:
-    """The runs' own wall times over the phase's wall time x workers (1: no worker ever idle)."""
+    """Parallel efficiency: the jobs' (or runs') wall times summed over the phase's wall time x workers (1: no
+    worker ever idle, and, with the runs' own times, no time spent starting a job or passing its result)."""
     return sum(run_times) / (wall * workers) if wall > 0 and workers > 0 else math.nan
 
 
@@ -209,10 +220,14 @@ def report(info: dict[str, Any], verdict_md: str) -> str:
         own = "-" if r["J_start"] is None else f"{r['J_start']:.4f}"
         lines.append(f"| {name} | {r['J']:.4f} | {own} | {r['evaluations']} | {r['runs']} | {r['failed_runs']} | "
                      f"{r['wall_time_s']:.0f} |")
-    lines += ["", f"Cost on {cost['workers']} workers: tuning {cost['tuning_s']:.0f} s ({cost['tuning_runs']} runs, "
-              f"parallel efficiency {cost['tuning_efficiency']:.2f}), scoring {cost['scoring_s']:.0f} s "
-              f"({cost['scoring_runs']} runs, efficiency {cost['scoring_efficiency']:.2f}), whole command "
-              f"{cost['total_s']:.0f} s.", "", verdict_md.replace("# Verdict", "## Verdict", 1)]
+    lines += ["", f"Cost on {cost['workers']} workers (parallel efficiency: the jobs' wall times, and the runs' "
+              "own, over the phase's wall time x workers):", "",
+              "| phase | wall [s] | runs | efficiency, jobs | efficiency, runs |", "|---|---|---|---|---|",
+              f"| tuning | {cost['tuning_s']:.0f} | {cost['tuning_runs']} | {cost['tuning_efficiency']:.2f} | "
+              f"{cost['tuning_run_efficiency']:.2f} |",
+              f"| scoring | {cost['scoring_s']:.0f} | {cost['scoring_runs']} | {cost['scoring_efficiency']:.2f} | "
+              f"{cost['scoring_run_efficiency']:.2f} |",
+              f"| whole command | {cost['total_s']:.0f} | | | |", "", verdict_md.replace("# Verdict", "## Verdict", 1)]
     return "\n".join(lines) + "\n"
 
 
@@ -312,11 +327,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: the verdict of {folder / 'score'} failed (exit {verdict_code})", file=sys.stderr)
         return 1
     write_text(folder / "verdict" / "criteria.csv", criteria_csv(rows, level, scored, bench.criteria))
-    score_times = [float(r["wall_time_s"]) for r in rows if r.get("wall_time_s")]
-    info["cost"] = {"workers": pool.n_workers, "tuning_s": tuning_s, "tuning_runs": len(runner.run_times),
-                    "tuning_efficiency": efficiency(runner.run_times, tuning_s, pool.n_workers),
+    score_jobs, score_runs = scoring_times(folder / "score")
+    w = pool.n_workers
+    info["cost"] = {"workers": w, "tuning_s": tuning_s, "tuning_runs": len(runner.run_times),
+                    "tuning_runs_per_strategy": {n: r["runs"] for n, r in results.items()},
+                    "tuning_efficiency": efficiency(runner.run_times, tuning_s, w),
+                    "tuning_run_efficiency": efficiency(runner.stepping_times, tuning_s, w),
                     "scoring_s": scoring_s, "scoring_runs": len(rows),
-                    "scoring_efficiency": efficiency(score_times, scoring_s, pool.n_workers),
+                    "scoring_efficiency": efficiency(score_jobs, scoring_s, w),
+                    "scoring_run_efficiency": efficiency(score_runs, scoring_s, w),
                     "total_s": time.perf_counter() - t_start}
     info.update(finished=utc_now(), complete=code == 0)
     write_json(folder / "benchmark.json", info)

@@ -100,13 +100,15 @@ def peaks_of(result: IdaRunResult, top: int) -> dict[str, float] | None:
 
 class SuiteRunner:
     """Runs settings of one strategy on the training components x levels, on a pool (plans and files shared once);
-    keeps every run's wall time [s] and why each failed run failed."""
+    keeps every job's wall time [s] (fork to result), every run's own (``run_plan``: loading and stepping) and
+    why each failed run failed."""
 
     def __init__(self, prepared: PreparedIda, components: list[RecordComponent], levels: list[float],
                  pool: BatchPool) -> None:
         self.prepared, self.components, self.levels, self.pool = prepared, components, levels, pool
         self.errors: list[str] = []
         self.run_times: list[float] = []
+        self.stepping_times: list[float] = []
         self._shared: dict[tuple[str, str], tuple[Any, dict[str, Any]]] = {}
 
     def _handle(self, component: str, strategy: str) -> tuple[Any, dict[str, Any]]:
@@ -137,6 +139,8 @@ class SuiteRunner:
         for r in results:
             self.run_times.append(r.wall_time_s)
             run = IdaRunResult.from_json(r.value) if r.ok and r.value else None
+            if run is not None and run.run_wall_time_s is not None:
+                self.stepping_times.append(run.run_wall_time_s)
             peaks = peaks_of(run, top) if run is not None else None
             if peaks is None:
                 why = r.error if run is None else (run.error or f"{run.status}, valid {run.valid}: "

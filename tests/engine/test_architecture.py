@@ -6,7 +6,8 @@
   and itself, no study; ``orchestration.inprocess`` the engine and the physics cores.
 * ``orchestration.building_studies`` (what the building studies share) imports the engine, the application's hooks
   (``engine_hooks``, ``building_report``, ``roles``) and the physics cores: no study.
-* ``orchestration.case_study`` and ``orchestration.ida_study`` build on ``building_studies``, never on each other.
+* ``orchestration.case_study`` and ``orchestration.ida_study`` build on ``building_studies``, never on each other;
+  ``orchestration.suite_benchmark`` builds on both, and neither imports it.
 * ``components`` never imports ``orchestration``; ``components.physics`` imports only itself.
 * A pythonfmu shell imports, by bare name, only physics cores that travel in its FMU.
 * No import cycle anywhere; no engine module mentions the building; no two modules share a file name.
@@ -77,8 +78,8 @@ def graph(sources: dict[str, str]) -> dict[str, set[str]]:
     return {n: {m for m in imports_of(n, s) if m in sources and m != n} for n, s in sources.items()}
 
 
-FORBIDDEN = {"orchestration.case_study": ("orchestration.ida_study",),
-             "orchestration.ida_study": ("orchestration.case_study",)}
+FORBIDDEN = {"orchestration.case_study": ("orchestration.ida_study", "orchestration.suite_benchmark"),
+             "orchestration.ida_study": ("orchestration.case_study", "orchestration.suite_benchmark")}
 """Applications that may import much, but not this: the two studies share orchestration.building_studies and
 never import each other."""
 
