@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
@@ -208,6 +208,28 @@ class ReferenceSpec(_Strict):
     tolerance: float = 0.25  # largest relative peak error accepted (README, coupling error)
 
 
+class FigureUnitsSpec(_Strict):
+    """The study figures' axes: acceleration in m/s2 or g (standard gravity), drift in mm or as the drift ratio
+    drift_j / h_j in % (``storey_heights`` h_j [m] of storeys 1..n). The tables stay in SI."""
+
+    acceleration: Literal["m/s2", "g"] = "m/s2"
+    drift: Literal["mm", "ratio"] = "mm"
+    storey_heights: list[float] | None = None
+
+    @field_validator("storey_heights")
+    @classmethod
+    def _heights(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not (value and all(np.isfinite(h) and h > 0 for h in value)):
+            raise ValueError(f"storey heights must be finite positive lengths [m], one per storey, got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _ratio(self) -> FigureUnitsSpec:
+        if self.drift == "ratio" and not self.storey_heights:
+            raise ValueError("drift: ratio needs storey_heights [m], one per storey (drift_j / h_j)")
+        return self
+
+
 class StudySpec(_Strict):
     """A whole study, as written in the YAML file (paths relative to it)."""
 
@@ -231,6 +253,7 @@ class StudySpec(_Strict):
     fig15: GainSetSpec = Field(default_factory=GainSetSpec)  # the second gain set (strategy sosm-fig15)
     strategy_tuning: StrategyTuningSpec | None = None  # tune.py: tune these strategies alike (not the SOSM gains)
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
+    figure_units: FigureUnitsSpec = Field(default_factory=FigureUnitsSpec)  # the figures' axes (tables stay SI)
     workers: int | None = None  # local cluster: worker processes (None: one per core)
     max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
     timeout_s: float | None = Field(1800.0, gt=0.0, le=MAX_TIMEOUT_S)  # [s] per co-simulation process (a bound)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from components.physics.ground_motion_core import G as STANDARD_GRAVITY
 from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_metrics import Metrics, Series, current_limit, pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
@@ -137,19 +138,38 @@ def current_figure(study: CaseStudyRecord, series: Series) -> Any:
     return fig
 
 
+def _units(study: CaseStudyRecord) -> dict[str, Any]:
+    """The study's ``figure_units`` (older study.json files: m/s2 and mm)."""
+    return {"acceleration": "m/s2", "drift": "mm", "storey_heights": None, **(study.config.get("figure_units") or {})}
+
+
+def acceleration_axis(values: Any, unit: str) -> tuple[Any, str]:
+    """Accelerations [m/s^2] on the figure's axis (``unit`` m/s2 or g, standard gravity) and the axis' unit."""
+    return (np.asarray(values, dtype=float) / STANDARD_GRAVITY, "g") if unit == "g" else (values, "m/s²")
+
+
+def drift_axis(values_mm: list[float], units: dict[str, Any]) -> tuple[list[float], str]:
+    """Peak drifts of storeys 1..n [mm] on the figure's axis (mm, or drift ratio in % of ``storey_heights``)."""
+    if units["drift"] == "ratio":
+        heights = units["storey_heights"][: len(values_mm)]  # none given: the axis' label only
+        return [0.1 * d / h for d, h in zip(values_mm, heights, strict=True)], "drift ratio [%]"
+    return values_mm, "peak drift [mm]"
+
+
 def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
     """Fig. 16: the top-floor absolute acceleration per record, passive against SOSM, strong-motion window."""
     import matplotlib.pyplot as plt
 
     records = list(study.records)
+    unit = _units(study)["acceleration"]
     fig, axes = plt.subplots(len(records), 1, figsize=(8, 1.9 * len(records)), squeeze=False)
     for ax, r in zip(axes[:, 0], records, strict=True):
         drawn = {}
         for s in (UNCONTROLLED, "passive-on", *SOSM_STRATEGIES):
             ts = series.get((r, s))
             if ts is not None and s in study.strategies:
-                drawn[s] = ts["building.a_3"]
-                ax.plot(ts["time"], ts["building.a_3"], color=COLORS[s], **strategy_style(s, study.strategies),
+                drawn[s] = acceleration_axis(ts["building.a_3"], unit)[0]
+                ax.plot(ts["time"], drawn[s], color=COLORS[s], **strategy_style(s, study.strategies),
                         markevery=max(1, len(ts["time"]) // 12), ms=3, mfc="none",
                         lw=0.6 if s in SOSM_STRATEGIES else 0.5, alpha=0.8 if s != "passive-on" else 0.6, label=s)
         ref_ts = series.get((r, UNCONTROLLED))
@@ -158,7 +178,7 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
             strong = ref_ts["time"][a > 0.05 * a.max()]
             if len(strong):
                 ax.set_xlim(0.0, min(ref_ts["time"][-1], strong[-1] + 5.0))
-        ax.set(ylabel="acceleration [m/s²]")
+        ax.set(ylabel=f"acceleration [{acceleration_axis([], unit)[1]}]")
         ax.set_title(f"{named(study, r)}: top-floor (3rd floor) absolute acceleration, strong-motion window",
                      fontsize=9)
         ax.grid(alpha=0.3)
@@ -175,8 +195,10 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
     import matplotlib.pyplot as plt
 
     records = list(study.records)
+    units = _units(study)
     fig, axes = plt.subplots(len(records), 2, figsize=(10, 2.4 * len(records)), squeeze=False)
     where: dict[str, list[str]] = {}
+    drift_label, acc_unit = drift_axis([], units)[1], acceleration_axis([], units["acceleration"])[1]
     for row, r in enumerate(records):
         drawn: tuple[dict[str, list[float]], dict[str, list[float]]] = ({}, {})
         for s in study.strategies:
@@ -184,8 +206,8 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
             if m is None:
                 continue
             nd = len([k for k in m if re.fullmatch(r"drift_\d+_mm", k)])
-            drawn[0][s] = [m[f"drift_{j}_mm"] for j in range(1, nd + 1)]
-            drawn[1][s] = [m[f"acc_{j}"] for j in range(nd + 1)]
+            drawn[0][s] = drift_axis([m[f"drift_{j}_mm"] for j in range(1, nd + 1)], units)[0]
+            drawn[1][s] = list(acceleration_axis([m[f"acc_{j}"] for j in range(nd + 1)], units["acceleration"])[0])
             style = strategy_style(s, study.strategies) | {"color": COLORS[s], "mfc": "none", "label": s}
             axes[row, 0].plot(drawn[0][s], range(1, nd + 1), **style)
             axes[row, 1].plot(drawn[1][s], range(nd + 1), **style)
@@ -195,9 +217,10 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
             panel = "" if pair in pairs[0] and pair in pairs[1] else " drift" if pair in pairs[0] else " acceleration"
             where.setdefault(coincidence_note(*pair), []).append(named(study, r) + panel)
         n_levels = len(study.records[r].masses_kg)
-        axes[row, 0].set(ylabel=f"{textwrap.fill(named(study, r), 22)}\nstorey", xlabel="peak drift [mm]",
+        axes[row, 0].set(ylabel=f"{textwrap.fill(named(study, r), 22)}\nstorey", xlabel=drift_label,
                          yticks=range(1, n_levels))
-        axes[row, 1].set(ylabel="level (0 = base)", xlabel="peak abs. acceleration [m/s²]", yticks=range(n_levels))
+        axes[row, 1].set(ylabel="level (0 = base)", xlabel=f"peak abs. acceleration [{acc_unit}]",
+                         yticks=range(n_levels))
         for ax in axes[row]:
             ax.grid(alpha=0.3)
             few_ticks(ax.xaxis)

@@ -21,7 +21,7 @@ from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, 
 from orchestration.case_study.case_records import PreparedStudy, RecordInfo
 from orchestration.case_study.robustness_plan import check_variants
 from orchestration.engine_hooks import plan_scenario
-from orchestration.master.errors import ScenarioError
+from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.yaml_source import load_tree
 
 
@@ -106,6 +106,14 @@ def prepare(study: LoadedStudy) -> PreparedStudy:
         records[r], plan = check_record(study, r, sets)
         sim = plan.loaded.scenario.simulation
         algorithms[r], step = sim.algorithm, sim.step
+    heights = study.spec.figure_units.storey_heights
+    wrong = {r: len(info.masses_kg) - 1 for r, info in records.items() if heights and len(heights) !=
+             len(info.masses_kg) - 1}
+    if wrong:
+        file, line = study.lines.get(("figure_units", "storey_heights")) or (str(study.path), None)
+        raise ScenarioError(Problem(f"{len(heights or [])} storey heights, but the building has "
+                                    f"{', '.join(f'{n} storeys ({r})' for r, n in wrong.items())}",
+                                    "figure_units.storey_heights", file, line))
     if study.spec.robustness is not None:
         check_variants(study, run_overrides(study.spec), sets, run_strategy_overrides)
     return PreparedStudy(records, sets, algorithms, step)

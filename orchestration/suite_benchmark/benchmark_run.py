@@ -14,8 +14,9 @@
 
 ``benchmark.json`` holds the split, the tuned settings and the cost (each phase's wall time, runs and parallel
 efficiency: the runs' own wall times over wall time x workers); ``benchmark.md`` is written last, so a folder with
-it is complete. Exit codes: 0 done; 1 a run failed or the study was interrupted; 2 configuration error (nothing
-written).
+it has its verdict (it names any scored run that failed first). An interrupted benchmark has neither verdict nor
+``benchmark.md``, and ``benchmark.json`` says where it stopped. Exit codes: 0 done; 1 a run failed or the study was
+interrupted; 2 configuration error (nothing written).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.case_study.strategy_tuner import entry_document, shown_path
 from orchestration.ida_study import ida_jobs
 from orchestration.ida_study.ida_config import LoadedIda
+from orchestration.ida_study.ida_metrics import ENDED
 from orchestration.ida_study.ida_plan import PreparedIda, prepare_ida
 from orchestration.ida_study.ida_records import utc_now
 from orchestration.ida_study.ida_run import run_ida
@@ -209,7 +211,10 @@ def efficiency(run_times: list[float], wall: float, workers: int) -> float:
 def report(info: dict[str, Any], verdict_md: str) -> str:
     """benchmark.md: the split, the tuning, the cost, then the verdict."""
     split, cost = info["split"], info["cost"]
-    lines = [f"# Suite benchmark: {info['name']}", "", info.get("description", ""), "",
+    failed = info.get("failed_runs") or []
+    warning = [f"**{len(failed)} scored runs failed** (their records count with their other valid runs only): "
+               + "; ".join(failed[:10]), ""] if failed else []
+    lines = [f"# Suite benchmark: {info['name']}", "", info.get("description", ""), "", *warning,
              f"- Trained on {len(split['train'])} records ({split['how']}): {', '.join(split['train'])}.",
              f"- Scored on {len(split['score'])} records: {', '.join(split['score'])}.",
              f"- Intensity: {info['measure']} at {', '.join(f'{x:g}' for x in info['levels'])} g, "
@@ -294,7 +299,19 @@ def main(argv: list[str] | None = None) -> int:
             write_json(folder / "benchmark.json", info)
             print(f"interrupted while tuning: nothing scored ({folder})", file=sys.stderr)
             return 1
+        except RuntimeError as exc:  # passive-off failed on a training run: no J can be formed
+            info["error"] = str(exc)
+            write_json(folder / "benchmark.json", info)
+            print(f"error: {exc}; nothing scored ({folder})", file=sys.stderr)
+            return 1
         tuning_s = time.perf_counter() - t0
+        unfit = [n for n, r in results.items() if not math.isfinite(r["J"])]
+        if unfit:
+            info["error"] = f"no finite objective for {', '.join(unfit)}: every setting had a failed or invalid run"
+            info["tuning_errors"] = runner.errors[:50]
+            write_json(folder / "benchmark.json", info)
+            print(f"error: {info['error']} ({runner.errors[:1]}); nothing scored ({folder})", file=sys.stderr)
+            return 1
         (folder / "tuning").mkdir()
         tuned_file = folder / "tuning" / "tuned_strategies.yaml"
         write_text(tuned_file, tuned_document(loaded, bench, split, train, targets, results, tuned_file))
@@ -313,7 +330,14 @@ def main(argv: list[str] | None = None) -> int:
         train.cleanup()
         if score is not None:
             score.cleanup()
+    if json.loads((folder / "score" / "ida.json").read_text()).get("interrupted"):
+        info["interrupted"] = "scoring"
+        write_json(folder / "benchmark.json", info)
+        print(f"interrupted while scoring: no verdict ({folder}; the finished runs are in score/)", file=sys.stderr)
+        return 1
     rows = read_results(folder / "score" / "results.csv")
+    failed = [r for r in rows if r["status"] not in ENDED]
+    info["failed_runs"] = [f"{r['record_id']}/{r['strategy']}: {r['status']} {r['error']}" for r in failed]
     level = min(float(r["intensity"]) for r in rows)
     compared = [s for s in scored if s != "passive-off"]
     from orchestration.verdict import main as verdict_main

@@ -27,9 +27,10 @@ def legend_texts(fig) -> list[str]:
     return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
 
 
-def study(records=("elcentro", "kobe")) -> SimpleNamespace:
+def study(records=("elcentro", "kobe"), figure_units: dict | None = None) -> SimpleNamespace:
     return SimpleNamespace(strategies=STRATEGIES, records={r: SimpleNamespace(scale=0.5, masses_kg=[1.0] * 4)
-                                                           for r in records})
+                                                           for r in records},
+                           config={"figure_units": figure_units} if figure_units else {})
 
 
 def metrics(best_offset: float) -> dict:
@@ -71,6 +72,44 @@ def test_fig17_notes_coinciding_strategies_and_only_those():
     fig = profiles_figure(study(), metrics(0.5))  # 0.5 mm apart: several % of the axis
     assert not [t for t in legend_texts(fig) if "coincides" in t]
     plt.close(fig)
+
+
+def test_fig17_in_g_and_drift_ratio():
+    """figure_units: each drift over its storey's height in %, each acceleration over 9.80665 m/s2."""
+    heights = [3.0, 2.5, 2.0]
+    fig = profiles_figure(study(figure_units={"acceleration": "g", "drift": "ratio", "storey_heights": heights}),
+                          metrics(0.0))
+    m = metrics(0.0)[("elcentro", "sosm")]
+    drift, acc = ({line.get_label(): line.get_xdata() for line in fig.axes[k].get_lines()} for k in (0, 1))
+    assert fig.axes[0].get_xlabel() == "drift ratio [%]" and fig.axes[1].get_xlabel() == "peak abs. acceleration [g]"
+    assert list(drift["sosm"]) == pytest.approx([100 * 1e-3 * m[f"drift_{j}_mm"] / heights[j - 1] for j in (1, 2, 3)],
+                                                rel=1e-12)
+    assert list(acc["sosm"]) == pytest.approx([m[f"acc_{j}"] / 9.80665 for j in range(4)], rel=1e-12)
+    plt.close(fig)
+
+
+def test_study_figure_units_are_checked_where_written(tmp_path):
+    from orchestration.case_study.case_config import load_study
+    from orchestration.case_study.case_plan import prepare
+    from orchestration.master.errors import ScenarioError
+
+    from ..conftest import PROJECT
+
+    def problems(units: str) -> list:
+        path = tmp_path / "study.yaml"
+        path.write_text(f"extends: {PROJECT / 'scenarios' / 'case_study.yaml'}\nfigure_units: {units}\n")
+        with pytest.raises(ScenarioError) as err:
+            prepare(load_study(path))
+        return err.value.problems
+
+    (p,) = problems("{drift: ratio}")
+    assert p.key == "figure_units" and "storey_heights" in p.message and p.line == 2
+    (p,) = problems("{storey_heights: [3.0, -1.0]}")
+    assert p.key == "figure_units.storey_heights" and "positive" in p.message
+    (p,) = problems("{acceleration: ft/s2}")
+    assert p.key == "figure_units.acceleration"
+    (p,) = problems("{drift: ratio, storey_heights: [3.0, 3.0]}")
+    assert p.key == "figure_units.storey_heights" and "3 storeys" in p.message and p.line == 2
 
 
 def pareto_rows(best_j5: float) -> list[dict]:

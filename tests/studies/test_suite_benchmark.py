@@ -171,3 +171,22 @@ def test_a_whole_benchmark_on_synthetic_records(tmp_path: Path, capsys: pytest.C
         assert len(values) == int(s["records"]) == 8
         assert math.isclose(float(s["median"]), float(np.median(values)), rel_tol=1e-12)
         assert float(s["low"]) <= float(s["median"]) <= float(s["high"])
+
+
+@pytest.mark.slow
+def test_an_interrupted_benchmark_says_where_it_stopped_and_has_no_verdict(tmp_path: Path, monkeypatch) -> None:
+    from orchestration.study import main
+    from orchestration.suite_benchmark import benchmark_run
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(benchmark_run, "tune_all", interrupted)
+    suite = _synthetic_suite(tmp_path / "suite")
+    study = _study(tmp_path, "tune: [on-off]\ntrain: 2\nbudget: 4\ncriteria: [J5]",
+                   extra="strategies: [passive-off, passive-on]\n", suite=f"suite: {{folder: {suite}}}\n")
+    out = tmp_path / "out"
+    assert main([str(study), "--out", str(out), "--workers", "1", "--quiet"]) == 1
+    info = json.loads((out / "benchmark.json").read_text())
+    assert info["complete"] is False and info["interrupted"] == "tuning"
+    assert not (out / "benchmark.md").exists() and not (out / "verdict").exists()
