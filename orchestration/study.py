@@ -31,7 +31,9 @@ def _study(argv: list[str] | None) -> int:
     from orchestration.case_study.case_run import main as study_main
     from orchestration.ida_study.ida_config import BENCHMARK_KEY
 
-    if declares_section(sys.argv[1:] if argv is None else argv, BENCHMARK_KEY):  # a suite benchmark
+    args = sys.argv[1:] if argv is None else argv
+    if declares_section(args, BENCHMARK_KEY) and declares_section(args, "suite"):  # a suite benchmark (an IDA
+        # file with benchmark:; a case study's benchmark: section has records, no suite)
         from orchestration.suite_benchmark.benchmark_run import main as benchmark_main
 
         return with_epilog(benchmark_main, argv, EPILOG)

@@ -110,7 +110,7 @@ def test_exit_2_for_what_only_a_run_would_find(tmp_path: Path, capsys: pytest.Ca
         "tune: [on-off]\ntrain: [FF01, FF77]": "unknown record 'FF77'",
         "tune: [on-off]\ntrain: [FF01]\nscore: [FF01, FF02]": "in-sample",
         "tune: [on-off]\ntrain: 2\nbudget: 2": "cannot tune 2 parameters",
-        "tune: [on-off]\ntrain: 20": "cannot carry the verdict",
+        "tune: [on-off]\nsplit_by: record\ntrain: 20": "cannot carry the verdict",
         "tune: [on-off]\ntrain: [FF01]\nsplit_by: earthquake": "have records both trained on and scored",
     }
     for benchmark, words in cases.items():
