@@ -2206,6 +2206,50 @@ def stop42_cases(base: Path) -> list[Case]:
     return cases
 
 
+STOP43 = "43/"
+"""Prefix of these classes: ``--only 43/`` runs them alone."""
+
+
+def stop43_cases(base: Path) -> list[Case]:
+    """The inputs of class 43/: the suite benchmark's ``benchmark:`` section (split, tuning, verdict), an IDA's
+    ``events`` and a study's ``figure_units``."""
+    cases: list[Case] = []
+    bench = [str(SC / "controller_suite_benchmark.yaml"), "--out", "out", "--quiet", "--workers", "1"]
+    for key, value in (("train", ".nan"), ("train", ".inf"), ("train", "-3"), ("train", "0"), ("train", "1.5"),
+                       ("train", "'3'"), ("train", "true"), ("train", "1000000000"), ("train", "[]"),
+                       ("train", "[FF01, FF01]"), ("train", "['../FF01']"), ("train", "['" + "é" * 150 + "']"),
+                       ("train", "[FF01]"), ("score", "[FF99]"), ("score", "[]"), ("split_by", "station"),
+                       ("split_by", "../x"), ("split_seed", "-1"), ("split_seed", "1099511627776"),
+                       ("split_seed", ".nan"), ("overlap", "'yes'"), ("tune", "[]"), ("tune", "[nope]"),
+                       ("tune", "[passive-on]"), ("tune", "[sosm, sosm]"), ("tune", "5"), ("budget", "0"),
+                       ("budget", "2"), ("budget", "-5"), ("budget", "1000000000"), ("budget", ".inf"),
+                       ("seed", "-1"), ("alpha", "0"), ("alpha", "1"), ("alpha", ".nan"),
+                       ("criteria", "[J6]"), ("criteria", "[]"), ("objective", "{w_zero: 1.0}"),
+                       ("objective", "{w_acc: -1}"), ("objective", "{x_limit: .nan}"), ("bogus", "1")):
+        cases.append(Case(STOP43 + "suite benchmark", f"{key}: {value}"[:70], "study.py",
+                          [*bench, "--set", f"benchmark.{key}={value}"], verify=_exit_2))
+    cases.append(Case(STOP43 + "suite benchmark", "too many records trained on", "study.py",
+                      [*bench, "--set", "benchmark.split_by=record", "--set", "benchmark.train=20"], verify=_exit_2))
+    cases.append(Case(STOP43 + "suite benchmark", "a folder suite split by earthquake", "study.py",
+                      [*bench, "--set", f"suite={{folder: {SC / 'records'}}}"], verify=_exit_2))
+    cases.append(Case(STOP43 + "suite benchmark", "events in a benchmark", "study.py",
+                      [*bench, "--set", "events=[FF01]"], verify=_exit_2))
+    cases.append(Case(STOP43 + "suite benchmark", "ida.py on a benchmark", "ida.py", bench[:3], verify=_exit_2))
+    ida = [str(SC / "ida_controllers_far_field.yaml"), "--out", "out", "--quiet", "--workers", "1"]
+    for value in ("[FF99]", "[]", "[FF01, FF01]", "['../FF01']", "5", "[.nan]"):
+        cases.append(Case(STOP43 + "ida events", f"events: {value}", "ida.py", [*ida, "--set", f"events={value}"],
+                          verify=_exit_2))
+    study = [str(SC / "case_study.yaml"), "--out", "out", "--quiet", "--workers", "1"]
+    for value in ("{drift: ratio}", "{acceleration: ft/s2}", "{storey_heights: [.nan, 3, 3]}",
+                  "{drift: ratio, storey_heights: [.inf, 3, 3]}", "{drift: ratio, storey_heights: [-1, 3, 3]}",
+                  "{drift: ratio, storey_heights: [0, 3, 3]}", "{drift: ratio, storey_heights: ['3', 3, 3]}",
+                  "{drift: ratio, storey_heights: [3]}", "{drift: ratio, storey_heights: []}",
+                  "{drift: ratio, storey_heights: [" + ", ".join(["3"] * 10000) + "]}", "{units: g}", "'../x'"):
+        cases.append(Case(STOP43 + "study figure units", f"figure_units: {value}"[:70], "study.py",
+                          [*study, "--set", f"figure_units={value}"], verify=_exit_2))
+    return cases
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -2218,7 +2262,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
             *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
             *leftover_cases(base), *hardening_cases(base), *stop37_cases(base),
-            *stop42_cases(base)]
+            *stop42_cases(base), *stop43_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:

@@ -216,10 +216,12 @@ class FigureUnitsSpec(_Strict):
     drift: Literal["mm", "ratio"] = "mm"
     storey_heights: list[float] | None = None
 
-    @field_validator("storey_heights")
+    @field_validator("storey_heights", mode="before")
     @classmethod
-    def _heights(cls, value: list[float] | None) -> list[float] | None:
-        if value is not None and not (value and all(np.isfinite(h) and h > 0 for h in value)):
+    def _heights(cls, value: Any) -> Any:
+        numbers = isinstance(value, list) and all(isinstance(h, int | float) and not isinstance(h, bool)
+                                                  for h in value)
+        if value is not None and not (numbers and value and all(np.isfinite(h) and h > 0 for h in value)):
             raise ValueError(f"storey heights must be finite positive lengths [m], one per storey, got {value}")
         return value
 

@@ -106,6 +106,8 @@ def test_study_figure_units_are_checked_where_written(tmp_path):
     assert p.key == "figure_units" and "storey_heights" in p.message and p.line == 2
     (p,) = problems("{storey_heights: [3.0, -1.0]}")
     assert p.key == "figure_units.storey_heights" and "positive" in p.message
+    (p,) = problems("{drift: ratio, storey_heights: ['3', 3, 3]}")  # text is not a length
+    assert p.key == "figure_units.storey_heights"
     (p,) = problems("{acceleration: ft/s2}")
     assert p.key == "figure_units.acceleration"
     (p,) = problems("{drift: ratio, storey_heights: [3.0, 3.0]}")
