@@ -1339,15 +1339,25 @@ def _check_run_folder(folder: Path, code: int, reasons: list[str]) -> None:
     if summary.get("complete") is True:
         if code != 0:
             reasons.append(f"summary.json says complete but the exit code is {code}")
+        kept = summary.get("results_file") or {"file": "timeseries.csv", "every_nth_step": 1}
         try:
             manifest = json.loads((folder / "manifest.json").read_text())
-            with open(folder / "timeseries.csv") as f:
-                rows = sum(1 for _ in f)
+            if kept.get("file") is None:  # a study's run that keeps no time series (timeseries: false)
+                rows = 0 if not list(folder.glob("timeseries.*")) else -1
+            elif str(kept["file"]).endswith(".parquet"):
+                import pyarrow.parquet as pq
+
+                rows = pq.read_metadata(folder / kept["file"]).num_rows
+            else:
+                with open(folder / kept["file"]) as f:
+                    rows = sum(1 for _ in f) - 1  # the header
         except (OSError, ValueError) as exc:
             reasons.append(f"complete summary but {exc}")
             return
-        if manifest.get("complete") is not True or rows != summary.get("steps_done", -10) + 2:
-            reasons.append(f"complete summary but manifest/timeseries disagree ({rows} rows)")
+        n, every = summary.get("steps_done", -10) + 1, int(kept.get("every_nth_step") or 1)
+        expected = 0 if kept.get("file") is None else len(range(0, n, every)) + ((n - 1) % every != 0)
+        if manifest.get("complete") is not True or rows != expected:
+            reasons.append(f"complete summary but manifest/results file disagree ({rows} rows, {expected} expected)")
     elif code == 0:
         reasons.append("exit 0 but summary.json says incomplete")
 
@@ -1547,6 +1557,15 @@ def session_input_cases() -> list[Case]:
 def _exit_2(work: Path, codes: list[int], err: str) -> list[str]:
     """Refused before any run: exit 2 and one line naming what."""
     return [] if codes == [2] else [f"exit {codes}, expected 2"]
+
+
+def _kept_every_fifth(work: Path, codes: list[int], err: str) -> list[str]:
+    """A study whose runs keep every 5th step in Parquet: exit 0, and the run folder holds that file beside the
+    run's numbers (computed from every step)."""
+    run = work / "out" / "runs" / "elcentro-passive-off"
+    reasons = [] if codes == [0] else [f"exit {codes}, expected 0"]
+    reasons += [f"no {name}" for name in ("timeseries.parquet", "metrics.json") if not (run / name).is_file()]
+    return reasons
 
 
 # -- what was left: unused values, unlisted strategies, NUL in text, full disks, stuck workers ------------
@@ -2040,11 +2059,15 @@ def stop37_cases(base: Path) -> list[Case]:
     for value in ("hdf5", "../x", "123", "PARQUET", "''", "null"):
         cases.append(Case(STOP37 + "results file", f"output_format={value}", "run.py",
                           _elc(f"simulation.output_format={value}"), verify=_exit_2))
-    one = ("records={elcentro: elcentro.yaml}", "overrides=[simulation.stop_time=0.05, simulation.output_interval=5]",
-           "reference={enabled: false}", "strategies=[passive-off]")
-    cases.append(Case(STOP37 + "results file", "a study with output_interval", "study.py",
-                      [str(SC / "case_study.yaml"), *(a for o in one for a in ("--set", o)), "--out", "out", "--quiet",
-                       "--workers", "1"], verify=_exit_and_says(2, "every step")))
+    one = ("records={elcentro: elcentro.yaml}", "overrides=[simulation.stop_time=0.05, simulation.output_interval=5, "
+           "simulation.output_format=parquet]", "reference={enabled: false}", "strategies=[passive-off]")
+    cases.append(Case(STOP37 + "results file", "a study with output_interval and parquet, kept", "study.py",
+                      [str(SC / "case_study.yaml"), *(a for o in one for a in ("--set", o)), "--set", "timeseries=true",
+                       "--out", "out", "--quiet", "--workers", "1"], verify=_kept_every_fifth))
+    for value in ("yes", "1", "null", "[true]", "'true'", ".nan"):  # timeseries is true or false, nothing else
+        cases.append(Case(STOP37 + "results file", f"a study with timeseries: {value}", "study.py",
+                          [str(SC / "case_study.yaml"), *(a for o in one for a in ("--set", o)), "--set",
+                           f"timeseries={value}", "--out", "out", "--quiet", "--workers", "1"], verify=_exit_2))
 
     study = [str(SC / "case_study.yaml"), "--set", "records={elcentro: elcentro.yaml}", "--set",
              "overrides=[simulation.stop_time=0.05]", "--set", "reference={enabled: false}", "--out", "out",

@@ -10,13 +10,8 @@ import numpy as np
 
 COINCIDENT = 0.005
 """Two curves coincide when they differ nowhere by more than this share of the axis span (0.5 %)."""
-STRATEGY_STYLES = {  # strategy -> (line style, marker): each strategy its own pair, so lines that lie on each
-    # other stay apart by their markers
-    "passive-off": (":", "o"), "passive-on": ("--", "s"), "best-constant": ("-.", "^"), "sosm": ("-", "D"),
-    "sosm-fig15": ((0, (6, 2)), "v"), "on-off": ((0, (5, 1, 1, 1, 1, 1)), "P"),
-    "clipped-optimal": ((0, (3, 1)), "X"), "clipped-optimal-inverse": ((0, (1, 2, 4, 2)), "<"),
-    "lyapunov": ((0, (8, 2, 2, 2)), ">"), "frequency": ((0, (2, 1, 2, 3)), "h")}
 _OTHER_STYLES = tuple((ls, m) for ls in ("-", "--", "-.", ":") for m in ("p", "*", "d", "8", "H"))
+"""Line and marker of a strategy whose entry sets none, by its place in the study (markers no shipped entry uses)."""
 
 
 def plain_log_axis(axis: Any) -> None:
@@ -39,14 +34,22 @@ def few_ticks(axis: Any, n: int = 4) -> None:
     axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:.3g}"))
 
 
-def strategy_style(strategy: str, order: Sequence[str] = ()) -> dict[str, Any]:
-    """``ls`` and ``marker`` for a strategy: its own (:data:`STRATEGY_STYLES`), or one by its place in ``order``."""
-    if strategy in STRATEGY_STYLES:
-        ls, marker = STRATEGY_STYLES[strategy]
-    else:
-        k = list(order).index(strategy) if strategy in order else 0
-        ls, marker = _OTHER_STYLES[k % len(_OTHER_STYLES)]
-    return {"ls": ls, "marker": marker}
+def strategy_style(strategy: str, order: Sequence[str] = (), style: Mapping[str, Any] | None = None
+                   ) -> dict[str, Any]:
+    """``ls``, ``marker`` and ``color`` for a strategy: what its entry's ``style`` sets (``line``: a named style or
+    dashes, ``[]`` solid; ``marker``; ``color``), the rest by its place in ``order``."""
+    k = list(order).index(strategy) if strategy in order else 0
+    ls, marker = _OTHER_STYLES[k % len(_OTHER_STYLES)]
+    out: dict[str, Any] = {"ls": ls, "marker": marker, "color": f"C{k % 10}"}
+    style = style or {}
+    line = style.get("line")
+    if isinstance(line, list):
+        out["ls"] = (0, tuple(line)) if line else "-"
+    elif line is not None:
+        out["ls"] = line
+    out["marker"] = style.get("marker") or out["marker"]
+    out["color"] = style.get("color") or out["color"]
+    return out
 
 
 def coincident(curves: Mapping[str, Any], spans: float | Sequence[float], tolerance: float = COINCIDENT

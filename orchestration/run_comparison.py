@@ -112,7 +112,10 @@ def read_run(folder: Path) -> Run:
             raise ComparisonError(f"{folder}/{name}: not a run's {name} (a JSON {type(texts[name]).__name__})")
     summary, manifest = texts["summary.json"], texts["manifest.json"]
     if not any((folder / f"timeseries.{ext}").is_file() for ext in ("csv", "parquet")):
-        raise ComparisonError(f"{folder}: no timeseries.csv or timeseries.parquet")
+        kept = _mapping(summary.get("results_file"))
+        why = (" (the run kept no time series: a study keeps its runs' only with `timeseries: true`; its numbers "
+               "are in the run's metrics.json)" if "file" in kept and kept["file"] is None else "")
+        raise ComparisonError(f"{folder}: no timeseries.csv or timeseries.parquet{why}")
     report = _mapping(_mapping(manifest.get("scenario")).get("report"))
     roles = {}
     for role, *_ in ROLES:

@@ -40,10 +40,29 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, required=True, help="a new or empty folder for the tables")
     parser.add_argument("--level", type=float, help="the intensity level compared (default: the lowest)")
     parser.add_argument("--criteria", nargs="+", default=["J3", "J4", "J5"], help="criteria (default J3 J4 J5)")
-    parser.add_argument("--strategies", nargs="+", help="strategies (default: all but passive-off, the baseline "
-                        "every J is divided by)")
+    parser.add_argument("--strategies", nargs="+", help="strategies (default: all but the uncontrolled one, the "
+                        "baseline every J is divided by: passive-off in the shipped studies)")
     parser.add_argument("--alpha", type=float, default=0.05, help="family-wise error rate (default 0.05)")
     return parser.parse_args(argv)
+
+
+def uncontrolled(folder: Path, ran: list[str]) -> str | None:
+    """The IDA's uncontrolled strategy, as its ``ida.json`` records it (one written before studies recorded their
+    strategies' flags: the shipped entries'); None if the folder says none."""
+    import json
+
+    from orchestration.ida_study.ida_records import IdaInfo
+
+    try:
+        info = IdaInfo.from_json(json.loads((folder / "ida.json").read_text()))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        info = None
+    if info is not None:
+        return info.uncontrolled
+    from orchestration.building_studies.strategies import recorded_flags
+
+    marked = [s for s in ran if recorded_flags({}, s).get("uncontrolled")]
+    return marked[0] if len(marked) == 1 else None
 
 
 def _verdict(argv: list[str] | None) -> int:
@@ -74,7 +93,8 @@ def _verdict(argv: list[str] | None) -> int:
     if not any(math.isclose(level, x, rel_tol=1e-9) for x in ran):
         raise UsageError(f"--level {level:g}: the study ran {', '.join(f'{x:g}' for x in ran)}")
     have = list(dict.fromkeys(r["strategy"] for r in rows))
-    strategies = args.strategies or [s for s in have if s != "passive-off"]
+    off = uncontrolled(args.folder, have)
+    strategies = args.strategies or [s for s in have if s != off]
     missing = [s for s in strategies if s not in have]
     if missing:
         raise UsageError(f"--strategies: {', '.join(missing)} not in the study (it ran {', '.join(have)})")
@@ -86,7 +106,8 @@ def _verdict(argv: list[str] | None) -> int:
     lines = [f"# Verdict at {level:g} ({args.folder})", "",
              f"{n_records} records (a record's components averaged, geometrically; the record is the unit of the "
              "bootstrap and of the tests), criteria over "
-             f"passive-off at the same component and level, valid runs only. Paired Wilcoxon signed-rank tests on "
+             f"{off or 'the uncontrolled strategy'} at the same component and level, valid runs only. Paired "
+             "Wilcoxon signed-rank tests on "
              f"the records' log ratios, Holm-corrected over {len(pairs)} comparisons (alpha {args.alpha:g}). The "
              f"smallest Holm-corrected p the exact test can give on n records needs n >= {need} for the first "
              "comparison to pass.", "",

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import tempfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,19 +41,24 @@ def run_folder_prefix(pid: int) -> str:
     return f"mre-cosim-run-{pid}-"
 
 
-def run_folder(payload: dict[str, Any]) -> tuple[Any, dict[str, bytes]]:
+def run_folder(payload: dict[str, Any], results_file: bool = True,
+               add_files: Callable[[Any, Any, Path], None] | None = None) -> tuple[Any, dict[str, bytes]]:
     """Run the payload's plan; its outcome and its run folder's files (zlib-compressed), by name.
 
     The run folder is written in a temporary folder of the worker; the paths of the worker's
     file cache in its JSON files (``manifest.json``, ``summary.json``) are replaced by the
-    client's paths (the SHA-256 in the manifest names the same bytes).
+    client's paths (the SHA-256 in the manifest names the same bytes). ``results_file=False``: the run writes no
+    time series (:func:`~orchestration.master.session.run_plan`). ``add_files(plan, outcome, folder)`` may write
+    more files into the folder before it is sent (a study's numbers, computed from the recorder's every step).
     """
     from orchestration.master.session import run_plan
 
     plan, paths = job_plan(payload)
     with tempfile.TemporaryDirectory(prefix=run_folder_prefix(os.getpid())) as tmp:
         folder = Path(tmp) / "run"
-        outcome = run_plan(plan, folder, plots=False, progress=False)
+        outcome = run_plan(plan, folder, plots=False, progress=False, results_file=results_file)
+        if add_files is not None:
+            add_files(plan, outcome, folder)
         files = {}
         for f in sorted(folder.iterdir()):
             if f.is_file():

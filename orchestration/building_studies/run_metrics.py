@@ -55,20 +55,44 @@ def _current_role(folder: Path) -> str | None:
 
 
 def read_timeseries(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a run's timeseries.csv by name (``time`` first); the current command also as :data:`CURRENT`
-    when the run's controller calls it otherwise."""
-    with open(path) as f:
-        header = next(csv.reader(f))
-    if not header:
-        raise ValueError(f"{path}: empty header")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    if data.shape[0] == 0:
-        data = np.zeros((0, len(header)))
-    columns = {name: data[:, k] for k, name in enumerate(header)}
-    role = _current_role(Path(path).parent)
+    """Columns of a run's results file by name (``time`` first): ``timeseries.csv``, or a Parquet table (a
+    ``.parquet`` path, as float64); the current command also as :data:`CURRENT` when the run's controller calls it
+    otherwise."""
+    path = Path(path)
+    if path.suffix == ".parquet":
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        columns = {name: table.column(name).to_numpy().astype(np.float64) for name in table.column_names}
+    else:
+        with open(path) as f:
+            header = next(csv.reader(f))
+        if not header:
+            raise ValueError(f"{path}: empty header")
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        if data.shape[0] == 0:
+            data = np.zeros((0, len(header)))
+        columns = {name: data[:, k] for k, name in enumerate(header)}
+    return with_current(columns, _current_role(path.parent))
+
+
+def with_current(columns: dict[str, np.ndarray], role: str | None) -> dict[str, np.ndarray]:
+    """``columns`` with the current command also under :data:`CURRENT` where the run's report names it ``role``."""
     if CURRENT not in columns and role in columns:
         columns[CURRENT] = columns[role]
     return columns
+
+
+def recorded_series(recorder: Any, current: str | None = None) -> dict[str, np.ndarray]:
+    """Every step a run recorded, by name (``time`` first), from its recorder in memory (not its results file,
+    which may keep every n-th step or none); the current command also as :data:`CURRENT` where the run's report
+    names it ``current`` (a controller from another tool). Numeric columns only; copies."""
+    n = recorder.count
+    columns = {"time": np.array(recorder.time[:n], dtype=np.float64)}
+    for k, name in enumerate(recorder.names):
+        if k not in recorder.strings:
+            columns[name] = np.array(recorder.data[:n, k], dtype=np.float64)
+    return with_current(columns, current)
 
 
 def _peak(x: np.ndarray) -> float:

@@ -1,10 +1,11 @@
-"""What every co-simulation of a building study gets and must keep: the study's overrides and current limit,
-the variables it records, and a results file with every step (the studies' criteria are computed from it)."""
+"""What every co-simulation of a building study gets: the study's overrides and current limit, and the variables
+it records (the studies compute their criteria from every recorded step, in the run: case_study/run_numbers.py,
+ida_study/ida_jobs.py)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Protocol
 
 # Recorded variables of every co-simulation of a study (the report roles are added by the master).
 RECORDED = ("building.x_0", "building.v_0", "building.drift_1", "building.drift_2", "building.drift_3",
@@ -25,13 +26,3 @@ class StudyRuns(Protocol):
 def run_overrides(spec: StudyRuns) -> tuple[str, ...]:
     """Overrides every run of a study gets: the study's own, then the current limit of both units."""
     return (*spec.overrides, f"isolator.i_max={spec.i_max}", f"controller.i_max={spec.i_max}")
-
-
-def every_step_problem(sim: Any) -> str | None:
-    """Why a study cannot run a scenario whose results file is decimated or not CSV (None: it can): its criteria
-    are computed from every step of each run's ``timeseries.csv``."""
-    if sim.output_interval == 1 and sim.output_format == "csv":
-        return None
-    return (f"simulation.output_interval = {sim.output_interval}, output_format = {sim.output_format}: a study "
-            "computes its criteria from every step of its runs' timeseries.csv, so its runs need the defaults "
-            "(1, csv); set them on single runs (run.py)")

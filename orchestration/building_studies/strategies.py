@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.building_report import REPORT
 from orchestration.engine_hooks import PROJECT_DIR as PROJECT
@@ -81,8 +81,65 @@ class TunableRange(BaseModel):
         return self
 
 
+LINE_STYLES = ("-", "--", "-.", ":")  # matplotlib's named line styles; or dashes: on/off lengths in line widths
+MARKERS = ("o", "s", "^", "v", "<", ">", "D", "d", "P", "X", "p", "h", "H", "8", "*")  # filled matplotlib markers
+
+
+class StrategyStyle(BaseModel):
+    """How the figures draw a strategy: a matplotlib colour, a line (``-``, ``--``, ``-.``, ``:`` or dashes, on/off
+    lengths in line widths; ``[]`` solid) and a filled marker. Unset: one by the strategy's place in the study."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    color: str | None = None
+    line: str | list[float] | None = None
+    marker: str | None = None
+
+    @field_validator("color")
+    @classmethod
+    def _color(cls, value: str | None) -> str | None:
+        from matplotlib.colors import is_color_like
+
+        if value is not None and not is_color_like(value):
+            raise ValueError(f"{value!r} is not a matplotlib colour (a name like tab:red, a grey level like '0.3', "
+                             "or #rrggbb)")
+        return value
+
+    @field_validator("line")
+    @classmethod
+    def _line(cls, value: str | list[float] | None) -> str | list[float] | None:
+        if isinstance(value, str) and value not in LINE_STYLES:
+            raise ValueError(f"line must be one of {', '.join(LINE_STYLES)} or dashes (on/off lengths), got {value!r}")
+        if isinstance(value, list) and (len(value) % 2 or len(value) > 16 or
+                                        not all(math.isfinite(v) and v > 0 for v in value)):
+            raise ValueError(f"dashes are pairs of positive on/off lengths (at most 8 pairs), got {value!r}")
+        return value
+
+    @field_validator("marker")
+    @classmethod
+    def _marker(cls, value: str | None) -> str | None:
+        if value is not None and value not in MARKERS:
+            raise ValueError(f"marker must be one of {' '.join(MARKERS)}, got {value!r}")
+        return value
+
+    def linestyle(self) -> Any:
+        """The line as matplotlib takes it (``None``: unset)."""
+        if isinstance(self.line, list):
+            return "-" if not self.line else (0, tuple(self.line))
+        return self.line
+
+
 class StrategyEntry(BaseModel):
-    """One strategy as written in a strategy file (``fmu`` relative to that file)."""
+    """One strategy as written in a strategy file (``fmu`` relative to that file).
+
+    Besides the controller, an entry says what a study does with it (no strategy's name means anything to the
+    code): ``uncontrolled`` marks the uncontrolled case (the indices J, the objectives of the sweep and the tuners,
+    the IDA's and the suite benchmark's criteria are over its runs; a study lists exactly one); ``radau_reference``
+    a constant current the case study checks against the monolithic Radau solution; ``paper_figures`` its part in
+    the paper's figures and claims (``controlled``: Fig. 15's current, Fig. 16, the claims checked and the verdict
+    per record; ``passive``: drawn beside it in Fig. 16); a parameter set to ``${best_current}`` makes it need the
+    case study's constant-current sweep (:attr:`Strategy.needs_sweep`); ``style`` its line in the figures.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -96,6 +153,10 @@ class StrategyEntry(BaseModel):
     limit: str | None = None  # the parameter the study's current limit sets [A]; None: i_max where the FMU has it
     tunable: dict[str, TunableRange] = Field(default_factory=dict)  # FMU parameter -> the range the tuner searches
     tuned: dict[str, Any] | None = None  # a tuned entry: what it was tuned on (records, objective, budget, seed, ...)
+    uncontrolled: StrictBool = False  # the uncontrolled case: the studies' indices and criteria are over its runs
+    radau_reference: StrictBool = False  # its constant current is checked against the monolithic Radau solution
+    paper_figures: Literal["controlled", "passive"] | None = None  # its part in the paper's Fig. 15-17 and claims
+    style: StrategyStyle | None = None  # how the figures draw it
 
     @field_validator("tunable")
     @classmethod
@@ -158,6 +219,19 @@ class Strategy:
         p = Path(self.entry.fmu)
         file = Path(self.where("fmu")[0])
         return p if p.is_absolute() else (file.parent / p).resolve()
+
+    @property
+    def needs_sweep(self) -> bool:
+        """Whether a parameter takes the record's best constant current (``${best_current}``): the case study's
+        constant-current sweep must run first, and an IDA cannot run it."""
+        return any(v == BEST for v in self.entry.parameters.values())
+
+    def flags(self) -> dict[str, Any]:
+        """What a study's report needs of the entry once it has run (``study.json``'s ``strategy_flags``)."""
+        e = self.entry
+        return {"label": self.label, "uncontrolled": e.uncontrolled, "radau_reference": e.radau_reference,
+                "paper_figures": e.paper_figures, "needs_sweep": self.needs_sweep, "gains_limit": e.gains_limit,
+                "style": e.style.model_dump() if e.style is not None else None}
 
     @property
     def current_ref(self) -> str:
@@ -357,6 +431,35 @@ def unknown_strategies(names: list[str], known: dict[str, Strategy], lines: Line
             problems.append(Problem(f"unknown strategy {name!r} (known: {', '.join(known)})", f"{key}.{k}",
                                     file, line))
     return problems
+
+
+def recorded_flags(recorded: dict[str, dict[str, Any]], name: str) -> dict[str, Any]:
+    """A strategy's flags (:meth:`Strategy.flags`) as a study folder recorded them; for a folder written before
+    they were, the shipped entry's of that name (else its name only)."""
+    if name in recorded:
+        return recorded[name]
+    shipped = builtin_strategies().get(name)
+    return shipped.flags() if shipped is not None else {"label": name}
+
+
+def uncontrolled_of(names: list[str], library: dict[str, Strategy]) -> str | None:
+    """The one strategy of ``names`` whose entry says ``uncontrolled: true`` (None: none, or several)."""
+    marked = [n for n in names if n in library and library[n].entry.uncontrolled]
+    return marked[0] if len(marked) == 1 else None
+
+
+def uncontrolled_problems(names: list[str], library: dict[str, Strategy], lines: Lines, path: Path, key: str
+                          ) -> list[Problem]:
+    """A located problem unless exactly one strategy of ``names`` (the study's list ``key``) is marked uncontrolled:
+    the indices and criteria of a study are over its runs."""
+    marked = [n for n in names if n in library and library[n].entry.uncontrolled]
+    if len(marked) == 1:
+        return []
+    file, line = lines.get(tuple(key.split(".")), (str(path), None))
+    what = (f"several are marked uncontrolled ({', '.join(marked)}): list one of them" if marked else
+            "none is marked uncontrolled: list one whose entry says `uncontrolled: true` (the shipped passive-off)")
+    return [Problem(f"the strategies need one uncontrolled case, the one the indices and criteria are over; {what}",
+                    key, file, line)]
 
 
 def check_strategy(strategy: Strategy, scenario: Path, base: tuple[str, ...], i_max: float,

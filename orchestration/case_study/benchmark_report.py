@@ -22,11 +22,9 @@ from mre_common.atomic_files import atomic_write_text
 from orchestration.case_study.benchmark_criteria import (
     CRITERIA,
     EFFORT,
-    J6_REFERENCE,
     NAMES,
-    effort,
+    j6_reference,
     normalised,
-    raw_criteria,
 )
 from orchestration.case_study.case_figures import save
 from orchestration.case_study.case_metrics import pareto_front
@@ -45,16 +43,16 @@ def _entries(study: CaseStudyRecord) -> dict[tuple[str, str], Any]:
     return {(e.record, e.strategy): e for e in study.runs}
 
 
-def raw_table(study: CaseStudyRecord, series: dict[tuple[str, str], Any]) -> dict[tuple[str, str], dict[str, float]]:
-    """(record, strategy) -> raw criteria and control effort of every successful run (J9 from its energy section,
-    with its raw share ``J9_raw`` and its coupling energy error ``energy_error``, a fraction of the input)."""
+def raw_table(study: CaseStudyRecord, numbers: dict[tuple[str, str], Any]) -> dict[tuple[str, str], dict[str, float]]:
+    """(record, strategy) -> raw criteria and control effort of every successful run, as the run computed them from
+    its every step (J9 from its energy section), with J9's raw share ``J9_raw`` and the coupling energy error
+    ``energy_error``, a fraction of the input."""
     out = {}
     entries = _entries(study)
-    for (r, s), ser in series.items():
+    for (r, s), found in numbers.items():
         entry = entries.get((r, s))
         energy = entry.energy if entry is not None else None
-        values = raw_criteria(ser, study.records[r].masses_kg, energy)
-        values.update(effort(ser["time"], ser["controller.i"]))
+        values = dict(found["criteria"])
         values["J9_raw"] = values["J9"]
         error = (energy or {}).get("max_coupling_error_fraction")
         values["energy_error"] = float(error) if isinstance(error, int | float) else math.nan
@@ -70,14 +68,14 @@ def criteria_rows(study: CaseStudyRecord, raw: dict[tuple[str, str], dict[str, f
     rows = []
     entries = _entries(study)
     for r in study.records:
-        base, j6_reference = raw.get((r, baseline), {}), raw.get((r, J6_REFERENCE), {})
+        base, j6_base = raw.get((r, baseline), {}), raw.get((r, j6_reference(study.config)), {})
         for s in study.strategies:
             if (r, s) in raw:
                 v = raw[(r, s)]
                 entry = entries.get((r, s))
                 valid = None if entry is None else entry.valid
                 reasons = list(entry.invalid_reasons) if entry is not None else []
-                rows.append({"record": r, "strategy": s, **normalised(v, base, j6_reference),
+                rows.append({"record": r, "strategy": s, **normalised(v, base, j6_base),
                              **{k: v[k] for k in EFFORT}, **{k: v[k] for k in EXTRA}, "valid": valid,
                              "invalid_reasons": "; ".join(reasons) if valid is not None else None})
     return rows
@@ -147,17 +145,17 @@ def step_criteria_changes(folder: Path, study: CaseStudyRecord, raw: dict[tuple[
                           ) -> dict[tuple[str, str], dict[str, float]]:
     """``--verify-step``: (record, strategy) -> each raw criterion's relative change in the run at half the plant's
     step (the same for every baseline: the baseline's own change shows in its row)."""
-    from orchestration.building_studies.run_metrics import read_timeseries
-    from orchestration.case_study.case_metrics import read_validity
+    from orchestration.case_study.case_metrics import run_numbers_of
 
     out = {}
     for half in study.half_step_runs:
         key = (half.record, half.strategy)
-        path = folder / half.folder / "timeseries.csv"
-        if not half.ok or key not in raw or not path.is_file():
+        if not half.ok or key not in raw:
             continue
-        read_validity(folder / half.folder, half)
-        fine = raw_criteria(read_timeseries(path), study.records[half.record].masses_kg, half.energy)
+        found = run_numbers_of(folder, study, half)
+        if found is None:
+            continue
+        fine = found["criteria"]
         out[key] = {k: (fine[k] / raw[key][k] - 1 if raw[key][k] else math.nan) for k in CRITERIA}
         entry = next((e for e in study.runs if (e.record, e.strategy) == key), None)
         if entry is not None:
@@ -191,10 +189,11 @@ def _span(values: list[float]) -> str:
         f"{values[0]:.1f}–{values[-1]:.1f} %"
 
 
-def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str) -> Any:
+def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str,
+                  styles: dict[str, Any] | None = None) -> Any:
     """J3 against J5 per record, every strategy a point with its own marker (the baseline, at (1, 1), left out),
     the best constant current a hollow star, the non-dominated strategies joined by a line; the legend says which
-    strategies' points coincide (within 0.5 % of each axis' span)."""
+    strategies' points coincide (within 0.5 % of each axis' span). ``styles``: each strategy's entry ``style``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -207,19 +206,18 @@ def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str) -> A
     fig, axes = plt.subplots((n + cols - 1) // cols, cols, figsize=(6 * cols, 4.5 * ((n + cols - 1) // cols)),
                              squeeze=False)
     names = [s for s in dict.fromkeys(row["strategy"] for row in rows) if s != baseline]
-    cmap = plt.get_cmap("tab10")
     where: dict[str, list[str]] = {}
     for ax, r in zip(axes.flat, records, strict=False):
         points: dict[str, tuple[float, float]] = {}
-        for k, s in enumerate(names):
+        for s in names:
             row = next((x for x in rows if x["record"] == r and x["strategy"] == s), None)
             if row is None or not (math.isfinite(row["J3"]) and math.isfinite(row["J5"])):
                 continue
             is_best = s == best
             points[s] = (row["J3"], row["J5"])
-            ax.scatter(row["J3"], row["J5"], s=260 if is_best else 50,
-                       marker="*" if is_best else strategy_style(s, names)["marker"],
-                       facecolors="none" if is_best else cmap(k % 10), edgecolors="k" if is_best else "face",
+            look = strategy_style(s, names, (styles or {}).get(s))
+            ax.scatter(row["J3"], row["J5"], s=260 if is_best else 50, marker="*" if is_best else look["marker"],
+                       facecolors="none" if is_best else look["color"], edgecolors="k" if is_best else "face",
                        zorder=4 if is_best else 3, label=s)
         front = sorted(list(points.values())[k] for k in pareto_front(list(points.values())))
         if len(front) > 1:
@@ -240,10 +238,10 @@ def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str) -> A
 
 
 def pareto_plot(rows: Rows, records: list[str], best: str, baseline: str, path: Path,
-                files: FigureFiles = PNG_ONLY) -> Path:
+                files: FigureFiles = PNG_ONLY, styles: dict[str, Any] | None = None) -> Path:
     """:func:`pareto_figure` written as ``path`` (PNG, and each of ``files.formats`` beside it); the PNG."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    return save(pareto_figure(rows, records, best, baseline), path, files)
+    return save(pareto_figure(rows, records, best, baseline, styles), path, files)
 
 
 def _table(rows: Rows, title: str) -> list[Block]:
@@ -260,7 +258,7 @@ def _table(rows: Rows, title: str) -> list[Block]:
     return [Block("p", title), Block("table", header=header, rows=body)]
 
 
-def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[str, str], Any],
+def benchmark_outputs(folder: Path, study: CaseStudyRecord, numbers: dict[tuple[str, str], Any],
                       files: FigureFiles = PNG_ONLY) -> list[Block]:
     """Write criteria.csv (and the second baseline's), the Pareto figure (PNG, and ``files.formats``); the report's
     benchmark blocks."""
@@ -268,13 +266,14 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
     baseline, second = spec.get("baseline", "passive-off"), spec.get("second_baseline", "passive-on")
     best = spec.get("best_constant", "best-constant")
     records = list(study.records)
-    raw = raw_table(study, series)
+    raw = raw_table(study, numbers)
     changes = step_criteria_changes(folder, study, raw)
     rows = with_step_changes(criteria_rows(study, raw, baseline), changes)
     atomic_write_text(folder / "criteria.csv", csv_text(rows))
     blocks = [Block("h", "Controller benchmark (Narasimhan et al. 2006 criteria)"),
               Block("p", "J1…J9 are each strategy's value over the baseline's on the same record, J6 (the peak "
-                         f"force the current controls, F − F at 0 A) over {J6_REFERENCE}'s (lower is better; "
+                         f"force the current controls, F − F at 0 A) over {j6_reference(study.config)}'s (lower is "
+                         "better; "
                          "J9, the share of the ground's input energy the isolators take, higher means more of it; "
                          "from each run's energy balance, summary.json `energy`: J9_raw is the share itself, "
                          "energy_error the coupling's energy error as a fraction of the input energy). "
@@ -296,7 +295,7 @@ def benchmark_outputs(folder: Path, study: CaseStudyRecord, series: dict[tuple[s
                          f"criteria_{second}.csv gives the ratios to {second})" if second else "")
         blocks.append(Block("p", text + "."))
     fig = pareto_plot(ranked_rows(rows), records, best, baseline, folder / "figures" / "benchmark_pareto_J3_J5.png",
-                      files)
+                      files, {s: study.flags(s).get("style") for s in study.strategies})
     blocks.append(Block("img", str(fig.relative_to(folder)), items=[
         f"J3 (peak base displacement) against J5 (peak floor acceleration), both over {baseline} (which sits "
         f"at (1, 1), not drawn); the hollow star is the best constant current ({best}); the grey line joins the "

@@ -18,6 +18,8 @@ from orchestration.building_studies.strategies import (
     Strategy,
     StrategyEntry,
     strategy_library,
+    uncontrolled_of,
+    uncontrolled_problems,
     unknown_strategies,
 )
 from orchestration.building_studies.study_file import REPLACED_KEYS, apply_overrides
@@ -26,9 +28,9 @@ from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.scenario import validation_problems
 from orchestration.master.yaml_source import load_tree
 
-STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")
-UNCONTROLLED = "passive-off"
-SOSM_STRATEGIES = ("sosm", "sosm-fig15")  # the SOSM controller with the study's gains / the second gain set
+STRATEGIES = ("passive-off", "passive-on", "best-constant", "sosm", "sosm-fig15", "on-off")  # the default list
+GAIN_SETS = ("sosm", "sosm-fig15")  # the SOSM gain sets a strategy entry may name (`gains:`): the study's `gains`
+# file and its second gain set, `fig15` (the names of gain sets, not of strategies)
 
 
 MAX_SWEEP_POINTS = 10_001
@@ -198,6 +200,7 @@ class BenchmarkSpec(_Strict):
     baseline: str = "passive-off"  # J1...J9 are ratios to this strategy's values
     second_baseline: str | None = "passive-on"  # the same table normalised by this one too
     best_constant: str = "best-constant"  # the strategy every other one is judged against
+    j6_reference: str = "passive-on"  # J6 (the controllable force) is over this strategy's, on the same record
 
 
 class ReferenceSpec(_Strict):
@@ -256,6 +259,9 @@ class StudySpec(_Strict):
     strategy_tuning: StrategyTuningSpec | None = None  # tune.py: tune these strategies alike (not the SOSM gains)
     reference: ReferenceSpec = Field(default_factory=ReferenceSpec)
     figure_units: FigureUnitsSpec = Field(default_factory=FigureUnitsSpec)  # the figures' axes (tables stay SI)
+    # each run folder keeps its time series (as the runs' simulation.output_interval and output_format say); the
+    # tables and criteria come from every step, computed in each run, either way (case_study/run_numbers.py)
+    timeseries: StrictBool = False
     workers: int | None = None  # local cluster: worker processes (None: one per core)
     max_worker_deaths: int = 2  # a job whose worker dies is run again elsewhere at most this many times
     timeout_s: float | None = Field(1800.0, gt=0.0, le=MAX_TIMEOUT_S)  # [s] per co-simulation process (a bound)
@@ -265,8 +271,6 @@ class StudySpec(_Strict):
     def _check(self) -> StudySpec:
         if not self.records:
             raise ValueError("a study needs at least one record")
-        if UNCONTROLLED not in self.strategies:
-            raise ValueError(f"strategies must include {UNCONTROLLED!r}: it is the uncontrolled case of the indices")
         if len(set(self.strategies)) != len(self.strategies):
             raise ValueError("strategies are listed twice")
         if not (np.isfinite(self.i_max) and self.i_max > 0):
@@ -329,6 +333,21 @@ class LoadedStudy:
         """A strategy the study names."""
         return self.library[name]
 
+    @property
+    def uncontrolled(self) -> str:
+        """The study's uncontrolled strategy: the one listed whose entry says ``uncontrolled: true`` (checked
+        to be one when the file is read)."""
+        name = uncontrolled_of(self.spec.strategies, self.library)
+        if name is None:
+            raise ScenarioError(uncontrolled_problems(self.spec.strategies, self.library, self.lines, self.path,
+                                                      "strategies"))
+        return name
+
+    @property
+    def needs_sweep(self) -> bool:
+        """Whether a listed strategy takes the record's best constant current: the sweep runs first."""
+        return any(self.strategy(s).needs_sweep for s in self.spec.strategies)
+
     def scenario_path(self, record: str) -> Path:
         """Scenario file of a record (absolute)."""
         p = Path(self.spec.records[record])
@@ -339,15 +358,16 @@ class LoadedStudy:
         """The SOSM gains file written by the tuning procedure (absolute)."""
         return self.gain_set_path("sosm")
 
-    def gain_set_path(self, strategy: str) -> Path:
-        """The gains file of an SOSM strategy (``sosm`` or ``sosm-fig15``), absolute."""
-        key = ("gains",) if strategy == "sosm" else ("fig15", "gains")
-        p = Path(self.spec.gains if strategy == "sosm" else self.spec.fig15.gains)
+    def gain_set_path(self, gain_set: str) -> Path:
+        """The gains file of an SOSM gain set (``sosm``: the study's ``gains``; ``sosm-fig15``: ``fig15.gains``),
+        absolute."""
+        key = ("gains",) if gain_set == "sosm" else ("fig15", "gains")
+        p = Path(self.spec.gains if gain_set == "sosm" else self.spec.fig15.gains)
         return p if p.is_absolute() else (self.base_dir(*key) / p).resolve()
 
-    def gain_set(self, strategy: str) -> tuple[float, ObjectiveSpec, TuningSpec]:
-        """Controller current limit [A], objective and tuning of an SOSM strategy."""
-        if strategy == "sosm":
+    def gain_set(self, gain_set: str) -> tuple[float, ObjectiveSpec, TuningSpec]:
+        """Controller current limit [A], objective and tuning of an SOSM gain set."""
+        if gain_set == "sosm":
             return self.spec.i_max, self.spec.objective, self.spec.tuning
         return self.spec.fig15.i_max, self.spec.fig15.objective, self.spec.fig15.tuning
 
@@ -377,30 +397,41 @@ def load_study(path: Path | str, overrides: tuple[str, ...] = ()) -> LoadedStudy
         missing = unknown_strategies(spec.strategy_tuning.strategies, study.library, lines, path,
                                      "strategy_tuning.strategies")
     if not missing:
-        missing = folder_name_problems(study) + best_current_problems(study)
+        missing = (uncontrolled_problems(spec.strategies, study.library, lines, path, "strategies")
+                   + folder_name_problems(study) + reference_problems(study) + benchmark_problems(study))
     if missing:
         raise ScenarioError(missing)
     return study
 
 
-def best_current_problems(study: LoadedStudy) -> list[Problem]:
-    """A listed strategy whose parameters use ``${best_current}`` while the study runs no best-constant sweep
-    (the sweep that finds that current), refused before anything is written."""
-    from orchestration.building_studies.strategies import BEST
+def reference_problems(study: LoadedStudy) -> list[Problem]:
+    """A listed strategy marked ``radau_reference`` whose current is not a constant known before the runs (the
+    Radau reference integrates the same equations at that constant current), at the strategy's line."""
+    out = []
+    for k, s in enumerate(study.spec.strategies):
+        strategy = study.strategy(s)
+        if strategy.entry.radau_reference and (strategy.needs_sweep or strategy.constant_current(1.0, None) is None):
+            file, line = study.lines.get(("strategies", k)) or (str(study.path), None)
+            out.append(Problem(f"strategy {s!r} is marked radau_reference, but its current is not a constant known "
+                               "before the runs (the scenario's controller in passive mode, i_passive a number or "
+                               "${i_max})", f"strategies.{k}", file or str(study.path), line))
+    return out
 
-    spec = study.spec
-    if "best-constant" in spec.strategies:
+
+def benchmark_problems(study: LoadedStudy) -> list[Problem]:
+    """The benchmark's baselines, best constant current and J6 reference, each a strategy the study knows (one the
+    study does not list leaves its columns or verdicts empty, as the report says)."""
+    bench = study.spec.benchmark
+    if bench is None:
         return []
     out = []
-    for k, s in enumerate(spec.strategies):
-        params = study.strategy(s).entry.parameters or {}
-        uses = sorted(name for name, value in params.items() if value == BEST)
-        if uses:
-            file, line = study.lines.get(("strategies", k)) or study.lines.get(("strategies",)) or (
+    for key in ("baseline", "second_baseline", "best_constant", "j6_reference"):
+        name = getattr(bench, key)
+        if name is not None and name not in study.library:
+            file, line = study.lines.get(("benchmark", key)) or study.lines.get(("benchmark",)) or (
                 str(study.path), None)
-            out.append(Problem(f"strategy {s!r} sets {', '.join(uses)} = {BEST}, which only a study that lists "
-                               "'best-constant' (its current sweep) can fill in: add best-constant to strategies",
-                               f"strategies.{k}", file or str(study.path), line))
+            out.append(Problem(f"unknown strategy {name!r} (known: {', '.join(study.library)})",
+                               f"benchmark.{key}", file or str(study.path), line))
     return out
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import re
 import textwrap
-from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from components.physics.ground_motion_core import G as STANDARD_GRAVITY
-from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
-from orchestration.case_study.case_metrics import Metrics, Series, current_limit, pareto_front
+from orchestration.case_study.case_metrics import Metrics, Series, pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
+from orchestration.case_study.run_numbers import TOP_FLOOR
 from orchestration.figure_axes import (
     add_legend_notes,
     coincidence_note,
@@ -27,12 +26,13 @@ from orchestration.figure_axes import (
 )
 from orchestration.master.figure_files import PNG_ONLY, FigureFiles, save_figure
 
-COLORS = defaultdict(lambda: "tab:gray", {
-    "passive-off": "0.25", "passive-on": "tab:blue", "best-constant": "tab:green", "sosm": "tab:red",
-    "sosm-fig15": "tab:orange", "on-off": "tab:purple", "clipped-optimal": "tab:brown",
-    "clipped-optimal-inverse": "tab:pink", "lyapunov": "tab:olive", "frequency": "tab:cyan"})
 STUDY_DPI = 100
 """The studies' PNG resolution unless one is asked for (``--dpi``) [dots per inch]."""
+
+
+def style(study: CaseStudyRecord, s: str) -> dict[str, Any]:
+    """The line style, marker and colour of strategy ``s`` (its entry's ``style``, else by its place)."""
+    return strategy_style(s, study.strategies, study.flags(s).get("style"))
 
 
 def save(fig: Any, path: Path, files: FigureFiles = PNG_ONLY) -> Path:
@@ -107,11 +107,12 @@ def pareto_figure(study: CaseStudyRecord) -> Any:
     return fig
 
 
-def current_figure(study: CaseStudyRecord, series: Series) -> Any:
-    """Fig. 15: the SOSM current per record, one column per gain set; None without an SOSM strategy."""
+def current_figure(study: CaseStudyRecord, series: Series, metrics: Metrics) -> Any:
+    """Fig. 15: the SOSM current per record, one column per gain set (the dotted line its run's current limit);
+    None without an SOSM strategy."""
     import matplotlib.pyplot as plt
 
-    controlled = [s for s in study.strategies if s in SOSM_STRATEGIES]
+    controlled = study.paper("controlled")
     if not controlled:
         return None
     records = list(study.records)
@@ -119,11 +120,11 @@ def current_figure(study: CaseStudyRecord, series: Series) -> Any:
     fig, axes = plt.subplots(len(records), len(controlled), figsize=(8 * len(controlled) ** 0.5, 1.9 * len(records)),
                              squeeze=False, sharey=True)
     for col, s in enumerate(controlled):
-        limit = current_limit(study, s)
         for ax, r in zip(axes[:, col], records, strict=True):
             ts = series.get((r, s))
+            limit = (metrics.get((r, s)) or {}).get("current_limit_A", i_max)
             if ts is not None:
-                ax.plot(ts["time"], ts["controller.i"], color=COLORS[s], lw=0.6)
+                ax.plot(ts["time"], ts["controller.i"], color=style(study, s)["color"], lw=0.6)
                 if "coil.i" in ts:  # a plant with a coil lag: the device current, dashed, beside the command
                     ax.plot(ts["time"], ts["coil.i"], color="0.2", lw=0.5, ls="--")
             ax.axhline(hi, color="0.5", ls="--", lw=0.8)
@@ -165,16 +166,16 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
     fig, axes = plt.subplots(len(records), 1, figsize=(8, 1.9 * len(records)), squeeze=False)
     for ax, r in zip(axes[:, 0], records, strict=True):
         drawn = {}
-        for s in (UNCONTROLLED, "passive-on", *SOSM_STRATEGIES):
+        passive, controlled = study.paper("passive"), study.paper("controlled")
+        for s in (study.uncontrolled, *passive, *controlled):
             ts = series.get((r, s))
             if ts is not None and s in study.strategies:
-                drawn[s] = acceleration_axis(ts["building.a_3"], unit)[0]
-                ax.plot(ts["time"], drawn[s], color=COLORS[s], **strategy_style(s, study.strategies),
-                        markevery=max(1, len(ts["time"]) // 12), ms=3, mfc="none",
-                        lw=0.6 if s in SOSM_STRATEGIES else 0.5, alpha=0.8 if s != "passive-on" else 0.6, label=s)
-        ref_ts = series.get((r, UNCONTROLLED))
+                drawn[s] = acceleration_axis(ts[TOP_FLOOR], unit)[0]
+                ax.plot(ts["time"], drawn[s], **style(study, s), markevery=max(1, len(ts["time"]) // 12), ms=3,
+                        mfc="none", lw=0.6 if s in controlled else 0.5, alpha=0.6 if s in passive else 0.8, label=s)
+        ref_ts = series.get((r, study.uncontrolled))
         if ref_ts is not None and len(ref_ts["time"]) > 1:
-            a = np.abs(ref_ts["building.a_3"])
+            a = np.abs(ref_ts[TOP_FLOOR])
             strong = ref_ts["time"][a > 0.05 * a.max()]
             if len(strong):
                 ax.set_xlim(0.0, min(ref_ts["time"][-1], strong[-1] + 5.0))
@@ -208,9 +209,9 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
             nd = len([k for k in m if re.fullmatch(r"drift_\d+_mm", k)])
             drawn[0][s] = drift_axis([m[f"drift_{j}_mm"] for j in range(1, nd + 1)], units)[0]
             drawn[1][s] = list(acceleration_axis([m[f"acc_{j}"] for j in range(nd + 1)], units["acceleration"])[0])
-            style = strategy_style(s, study.strategies) | {"color": COLORS[s], "mfc": "none", "label": s}
-            axes[row, 0].plot(drawn[0][s], range(1, nd + 1), **style)
-            axes[row, 1].plot(drawn[1][s], range(nd + 1), **style)
+            look = style(study, s) | {"mfc": "none", "label": s}
+            axes[row, 0].plot(drawn[0][s], range(1, nd + 1), **look)
+            axes[row, 1].plot(drawn[1][s], range(nd + 1), **look)
         pairs = [coincident(curves, ax.get_xlim()[1] - ax.get_xlim()[0])
                  for ax, curves in zip(axes[row], drawn, strict=True)]
         for pair in dict.fromkeys([*pairs[0], *pairs[1]]):
@@ -246,10 +247,10 @@ def hysteresis_figure(study: CaseStudyRecord, series: Series, r: str) -> Any:
         ax.set_visible(False)
     for ax, s in zip(axes.flat, present, strict=False):
         ts = series[(r, s)]
-        ax.plot(1e3 * ts["building.x_0"], ts["isolator.F"], color=COLORS[s], lw=0.4)
-        for edge, style in ((x_id, "--"), (x_lim, ":")):
-            ax.axvline(edge, color="0.5", ls=style, lw=0.8)
-            ax.axvline(-edge, color="0.5", ls=style, lw=0.8)
+        ax.plot(1e3 * ts["building.x_0"], ts["isolator.F"], color=style(study, s)["color"], lw=0.4)
+        for edge, ls in ((x_id, "--"), (x_lim, ":")):
+            ax.axvline(edge, color="0.5", ls=ls, lw=0.8)
+            ax.axvline(-edge, color="0.5", ls=ls, lw=0.8)
         ax.set(title=s, xlabel="base displacement [mm]")
         ax.grid(alpha=0.3)
     n_iso = study.records[r].n_isolators
@@ -327,7 +328,7 @@ def make_figures(folder: Path, study: CaseStudyRecord, metrics: Metrics, series:
     figdir = folder / "figures"
     figdir.mkdir(exist_ok=True)
     draw: list[tuple[str, Callable[[], Any]]] = [
-        ("fig15_current", lambda: current_figure(study, series)), ("pareto", lambda: pareto_figure(study)),
+        ("fig15_current", lambda: current_figure(study, series, metrics)), ("pareto", lambda: pareto_figure(study)),
         ("fig16_top_acceleration", lambda: top_acceleration_figure(study, series)),
         ("fig17_profiles", lambda: profiles_figure(study, metrics))]
     draw += [(f"hysteresis_{r}", lambda r=r: hysteresis_figure(study, series, r)) for r in study.records]

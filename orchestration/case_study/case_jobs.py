@@ -17,11 +17,12 @@ import numpy as np
 
 from orchestration.batch.jobs import job_plan, run_folder
 from orchestration.building_studies.run_settings import RECORDED
+from orchestration.case_study.benchmark_criteria import FORCE_OFF
 
 OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 # A controller benchmark records the floors' velocities too (the input energy of its criterion J9).
 # And the isolator's force at 0 A along the same motion (J6), where the isolator FMU gives it (case_plan.plan_cosim).
-FORCE_OFF_OUTPUT = "isolator.F_off"
+FORCE_OFF_OUTPUT = FORCE_OFF
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
                                                        "ground.ag", FORCE_OFF_OUTPUT)) + "]")
 # The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key): every
@@ -94,8 +95,14 @@ class CosimResult:
 
 
 def cosim_job(payload: dict[str, Any]) -> dict[str, Any]:
-    """One case-study co-simulation; returns how it ended and its run folder's files (:class:`CosimResult`)."""
-    outcome, files = run_folder(payload)
+    """One case-study co-simulation; returns how it ended and its run folder's files (:class:`CosimResult`): its
+    numbers (``metrics.json``, from the recorder's every step), its figure series where asked, and its time series
+    only where the study asks for them (:mod:`orchestration.case_study.run_numbers`)."""
+    from orchestration.case_study.run_numbers import NumberInputs
+
+    inputs = NumberInputs.from_json(payload["numbers"])
+    outcome, files = run_folder(payload, results_file=inputs.timeseries,
+                                add_files=lambda plan, outcome, folder: write_numbers(plan, outcome, folder, inputs))
     s = outcome.summary
     return CosimResult(
         complete=outcome.result.complete, status=outcome.result.status,
@@ -104,6 +111,33 @@ def cosim_job(payload: dict[str, Any]) -> dict[str, Any]:
         time_beyond_identified_range_s=s.get("time_beyond_identified_range_s"),
         time_beyond_device_limit_s=s.get("time_beyond_device_limit_s"),
         peak_base_displacement_m=s.get("peak_base_displacement_m"), files=files).to_json()
+
+
+def write_numbers(plan: Any, outcome: Any, folder: Any, inputs: Any) -> None:
+    """A run's ``metrics.json`` (and its figure series where ``inputs`` asks), from the recorder's every step; none
+    for a run that recorded fewer than two steps. A variable the numbers need that the run did not record (a unit
+    from another tool without it) fails the job, naming it."""
+    from mre_common.atomic_files import atomic_write_text
+    from orchestration.building_studies.run_metrics import recorded_series
+    from orchestration.case_study.run_numbers import (
+        FIGURE_SERIES_FILE,
+        NUMBERS_FILE,
+        numbers_json,
+        run_numbers,
+        write_figure_series,
+    )
+
+    if outcome.recorder.count < 2:
+        return
+    current = getattr(plan.report, "current", None)
+    series = recorded_series(outcome.recorder, None if current is None else str(current))
+    try:
+        numbers = run_numbers(series, outcome.summary.get("energy"), inputs)
+    except KeyError as exc:
+        raise RuntimeError(f"the study's numbers need the variable {exc}, which this run did not record") from None
+    atomic_write_text(folder / NUMBERS_FILE, numbers_json(numbers))
+    if inputs.figure_series:
+        write_figure_series(folder / FIGURE_SERIES_FILE, series)
 
 
 def sweep_job(payload: dict[str, Any]) -> dict[str, Any]:

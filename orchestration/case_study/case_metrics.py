@@ -1,5 +1,6 @@
 """The numbers of a case study: every run's metrics, and the tables peaks.csv, indices.csv, sweep.csv,
-reference.csv, all from the study folder (``study.json`` and the runs' ``timeseries.csv``)."""
+reference.csv, all from the study folder (``study.json`` and the numbers each run computed from its every step,
+``metrics.json``: :mod:`orchestration.case_study.run_numbers`)."""
 
 from __future__ import annotations
 
@@ -10,16 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from orchestration.building_studies.run_metrics import (
-    INDEX_COLUMNS,
-    PEAK_COLUMNS,
-    csv_text,
-    indices,
-    read_timeseries,
-    run_metrics,
-)
-from orchestration.case_study.case_config import UNCONTROLLED
+from orchestration.building_studies.run_metrics import INDEX_COLUMNS, PEAK_COLUMNS, csv_text, indices
 from orchestration.case_study.case_records import CaseStudyRecord, RunEntry
+from orchestration.case_study.run_numbers import NUMBERS_FILE, NumberInputs, read_figure_series, read_numbers
 from orchestration.master.runfolder import write_text
 
 REFERENCE_KEYS = ("x_base_mm", "drift_1_mm", "drift_2_mm", "drift_3_mm", "acc_0", "acc_1", "acc_2", "acc_3",
@@ -29,54 +23,59 @@ REFERENCE_COLUMNS = ("record", "strategy", "peak", "cosim", "radau", "rel_error"
 PEAK_TABLE_COLUMNS = (*PEAK_COLUMNS, "valid", "invalid_reasons")  # peaks.csv: the peaks, then numerical validity
 
 Metrics = dict[tuple[str, str], dict[str, float]]  # (record, strategy) -> metric -> value
-Series = dict[tuple[str, str], dict[str, np.ndarray]]  # (record, strategy) -> column -> samples
+Numbers = dict[tuple[str, str], dict[str, Any]]  # (record, strategy) -> the run's numbers (run_numbers.py)
+Series = dict[tuple[str, str], dict[str, np.ndarray]]  # (record, strategy) -> column -> samples (figure series)
 
 
 def current_limit(study: CaseStudyRecord, strategy: str) -> float:
-    """The controller's current limit [A] of a strategy: the second gain set's own, else the study's i_max."""
+    """The controller's current limit [A] of a strategy in a study folder written before runs kept their numbers
+    (their ``metrics.json`` says it): the second gain set's own, else the study's i_max."""
     cfg = study.config
     if strategy == "sosm-fig15":
         return float((cfg.get("fig15") or {}).get("i_max", cfg["i_max"]))
     return float(cfg["i_max"])
 
 
-def current_shares(i: np.ndarray, limit: float, range_top: float) -> dict[str, float]:
-    """Shares of the run's samples with the current at its limit, at 0 A and at or above ``range_top`` [A]
-    (within 1e-6 A: the controller clips to its bounds exactly, the tolerance only absorbs the CSV's printing)."""
-    if not len(i):
-        return {"current_share_at_limit": math.nan, "current_share_at_zero": math.nan,
-                "current_share_at_range_top": math.nan}
-    return {"current_share_at_limit": float(np.mean(i >= limit - 1e-6)),
-            "current_share_at_zero": float(np.mean(i <= 1e-6)),
-            "current_share_at_range_top": float(np.mean(i >= range_top - 1e-6))}
+def legacy_inputs(study: CaseStudyRecord, run: RunEntry) -> NumberInputs:
+    """The inputs of a run's numbers for a folder written before runs computed them: from ``study.json``."""
+    doc = study.gain_sets.get(run.strategy) or {}
+    info = study.records[run.record]
+    return NumberInputs(masses=list(info.masses_kg), current_limit=current_limit(study, run.strategy),
+                        paper_current_range=tuple(study.config["paper_current_range"]), sosm_gains=doc.get("gains"),
+                        n_isolators=int(info.n_isolators or 2))
 
 
-def load_metrics(folder: Path, study: CaseStudyRecord) -> tuple[Metrics, Series]:
-    """Metrics and time series of every successful run of a study folder (a run without its time series
-    is marked failed in ``study``)."""
+def run_numbers_of(folder: Path, study: CaseStudyRecord, run: RunEntry) -> dict[str, Any] | None:
+    """A finished run's numbers (:func:`~orchestration.case_study.run_numbers.read_numbers`), its validity and energy
+    read into its entry first; None (and the entry marked failed, saying why) for a run folder that has none."""
+    read_validity(folder / run.folder, run)
+    numbers = read_numbers(folder / run.folder, legacy_inputs(study, run), run.energy)
+    if numbers is None:
+        run.ok = False
+        run.error = f"{folder / run.folder} has neither {NUMBERS_FILE} nor timeseries.csv"
+    return numbers
+
+
+def load_metrics(folder: Path, study: CaseStudyRecord) -> tuple[Metrics, Numbers, Series]:
+    """Metrics, numbers and figure series of every successful run of a study folder: the metrics and numbers as the
+    runs computed them from every step (``metrics.json``), the series the figures draw (``figure_series.parquet``,
+    or a run's results file); a run without numbers is marked failed in ``study``."""
     metrics: Metrics = {}
+    numbers: Numbers = {}
     series: Series = {}
     for run in study.runs:
         if not run.ok:
             continue
-        path = folder / run.folder / "timeseries.csv"
-        if not path.is_file():
-            run.ok = False
-            run.error = f"{path} is missing"
+        found = run_numbers_of(folder, study, run)
+        if found is None:
             continue
         key = (run.record, run.strategy)
-        read_validity(folder / run.folder, run)
-        series[key] = read_timeseries(path)
-        metrics[key] = m = run_metrics(series[key], study.records[run.record].masses_kg)
-        t, i = series[key]["time"], series[key]["controller.i"]
-        lo, hi = study.config["paper_current_range"]
-        dt = float(t[1] - t[0]) if len(t) > 1 else 0.0
-        m["time_current_outside_paper_range_s"] = float(np.sum((i > hi + 1e-12) | (i < lo - 1e-12)) * dt)
-        limit = current_limit(study, run.strategy)
-        m["current_limit_A"] = limit
-        m.update(current_shares(i, limit, hi))
+        numbers[key], metrics[key] = found, found["metrics"]
+        drawn = read_figure_series(folder / run.folder)
+        if drawn is not None:
+            series[key] = drawn
     apply_step_check(folder, study)
-    return metrics, series
+    return metrics, numbers, series
 
 
 def read_validity(run_folder: Path, run: RunEntry) -> None:
@@ -151,7 +150,7 @@ def peak_and_index_rows(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[
     peak_rows, index_rows = [], []
     study.indices = {}
     for r in study.records:
-        off = metrics.get((r, UNCONTROLLED))
+        off = metrics.get((r, study.uncontrolled))
         for s in study.strategies:
             m = metrics.get((r, s))
             if m is None:

@@ -14,12 +14,13 @@ from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, job_key, plan_content, portable
 from orchestration.building_studies.gains_file import read_gains
 from orchestration.building_studies.in_process_model import monolithic_problem, system_setup
-from orchestration.building_studies.run_settings import every_step_problem, run_overrides
+from orchestration.building_studies.run_settings import run_overrides
 from orchestration.building_studies.strategies import COMMAND, check_strategy
 from orchestration.case_study import case_jobs
-from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED, LoadedStudy
-from orchestration.case_study.case_records import PreparedStudy, RecordInfo
+from orchestration.case_study.case_config import GAIN_SETS, LoadedStudy
+from orchestration.case_study.case_records import CaseStudyRecord, PreparedStudy, RecordInfo, RunEntry
 from orchestration.case_study.robustness_plan import check_variants
+from orchestration.case_study.run_numbers import NumberInputs
 from orchestration.engine_hooks import plan_scenario
 from orchestration.master.errors import Problem, ScenarioError
 from orchestration.master.yaml_source import load_tree
@@ -35,16 +36,16 @@ class PlannedJob(NamedTuple):
 
 
 def gain_sets(study: LoadedStudy) -> dict[str, dict[str, Any]]:
-    """SOSM strategy -> its gains file's document; ScenarioError if tuned for another current limit."""
+    """SOSM gain set -> its gains file's document; ScenarioError if tuned for another current limit."""
     spec = study.spec
     sets: dict[str, Any] = {}
     used = {study.strategy(s).entry.gains for s in spec.strategies}
-    for strategy in (s for s in SOSM_STRATEGIES if s in used):
-        path = study.gain_set_path(strategy)
-        gains, sets[strategy] = read_gains(path)
-        i_max = study.gain_set(strategy)[0]
+    for gain_set in (g for g in GAIN_SETS if g in used):
+        path = study.gain_set_path(gain_set)
+        gains, sets[gain_set] = read_gains(path)
+        i_max = study.gain_set(gain_set)[0]
         if abs(gains.i_max - i_max) > 1e-12:
-            key = "i_max" if strategy == "sosm" else "fig15.i_max"
+            key = "i_max" if gain_set == GAIN_SETS[0] else "fig15.i_max"
             raise ScenarioError(f"{path}: gains tuned for i_max = {gains.i_max} A, the study's {key} is "
                                 f"{i_max} A: re-run the tuning")
     return sets
@@ -56,7 +57,8 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
     path = study.scenario_path(record)
     base = run_overrides(spec)
     plans, problems = {}, []
-    for s in sorted({UNCONTROLLED, *(s for s in spec.strategies if s != "best-constant")}):
+    uncontrolled = study.uncontrolled
+    for s in sorted({uncontrolled, *(s for s in spec.strategies if not study.strategy(s).needs_sweep)}):
         strategy = study.strategy(s)
         g = sets[strategy.entry.gains]["gains"] if strategy.entry.gains in sets else None
         try:
@@ -68,14 +70,11 @@ def check_record(study: LoadedStudy, record: str, sets: dict[str, dict[str, Any]
             problems += [p for p in exc.problems if p not in problems]
     if problems:
         raise ScenarioError(problems)
-    plan = plans[UNCONTROLLED]
+    plan = plans[uncontrolled]
     sim = plan.loaded.scenario.simulation
-    problem = every_step_problem(sim)
-    if problem:
-        raise ScenarioError(f"{path}: {problem}")
     # the in-process model: for the Radau reference, and for the sweep on the paper's system (another plant's sweep
     # co-simulates its FMUs, current_sweep.sweep_currents)
-    needs_model = spec.reference.enabled or ("best-constant" in spec.strategies and monolithic_problem(plan) is None)
+    needs_model = spec.reference.enabled or (study.needs_sweep and monolithic_problem(plan) is None)
     setup = system_setup(plan, 0.0) if needs_model else None
     masses = list(setup.building.m) if setup else list(BuildingParams.dyke().m)
     ground = plan.parameters.get("ground", {})
@@ -129,16 +128,34 @@ def run_strategy_overrides(study: LoadedStudy, strategy: str, scenario: Path, i_
     return (*s.overrides(i_max, gains, best), *wiring)
 
 
-def plan_cosim(study: LoadedStudy, label: str, overrides: tuple[str, ...], outputs: str) -> PlannedJob:
-    """A co-simulation job recording ``outputs`` (an ``outputs=[...]`` override, last); the isolator's ``F_off``
-    among them only where the isolator FMU has it (an isolator from another tool may not: its J6 is then NaN)."""
+def number_inputs(study: LoadedStudy, record: CaseStudyRecord, entry: RunEntry, figures: bool) -> NumberInputs:
+    """What the run of ``entry`` needs to compute its numbers in the run (:mod:`.run_numbers`): the record's masses,
+    the controller's current limit (its gain set's own where the entry says ``gains_limit``, else the study's),
+    the paper's current range, its SOSM gain set if it has one, and whether it keeps its figure series
+    (``figures``: the study's own runs, which the figures draw) and its time series (the study's ``timeseries``)."""
+    spec, info = study.spec, record.records[entry.record]
+    strategy = study.strategy(entry.strategy)
+    doc = record.gain_sets.get(strategy.entry.gains or "")
+    gains = dict(doc["gains"]) if doc else None
+    limit = float(gains["i_max"]) if gains is not None and strategy.entry.gains_limit else float(spec.i_max)
+    return NumberInputs(masses=list(info.masses_kg), current_limit=limit,
+                        paper_current_range=tuple(spec.paper_current_range), sosm_gains=gains,
+                        n_isolators=int(info.n_isolators or 2), figure_series=figures, timeseries=spec.timeseries)
+
+
+def plan_cosim(study: LoadedStudy, label: str, overrides: tuple[str, ...], outputs: str, numbers: NumberInputs
+               ) -> PlannedJob:
+    """A co-simulation job recording ``outputs`` (an ``outputs=[...]`` override, last) that computes ``numbers``;
+    the isolator's ``F_off`` among them only where the isolator FMU has it (an isolator from another tool may not:
+    its J6 is then NaN)."""
+    extra = {"numbers": numbers.to_json()}
     try:
-        return plan_job(study, label, "cosim", (*overrides, outputs), {})
+        return plan_job(study, label, "cosim", (*overrides, outputs), extra)
     except ScenarioError as exc:
         name = case_jobs.FORCE_OFF_OUTPUT
         if name not in outputs or not any(name in p.message for p in exc.problems):
             raise
-    return plan_job(study, label, "cosim", (*overrides, outputs.replace(f", {name}", "")), {})
+    return plan_job(study, label, "cosim", (*overrides, outputs.replace(f", {name}", "")), extra)
 
 
 def plan_job(study: LoadedStudy, label: str, kind: str, overrides: tuple[str, ...], extra: dict[str, Any]

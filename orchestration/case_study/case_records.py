@@ -132,7 +132,7 @@ class PreparedStudy:
     """A study checked before anything is written: its records, gain sets, coupling algorithms and step."""
 
     records: dict[str, RecordInfo]
-    gain_sets: dict[str, dict[str, Any]]  # SOSM strategy -> its gains file's document
+    gain_sets: dict[str, dict[str, Any]]  # SOSM gain set (sosm, sosm-fig15) -> its gains file's document
     algorithms: dict[str, str]  # record -> coupling algorithm
     step: float | None  # [s] communication step
 
@@ -172,6 +172,26 @@ class CaseStudyRecord:
     metrics: dict[str, dict[str, float]] | None = None  # record/strategy -> metrics (written by the report)
     variant_runs: list[RunEntry] = field(default_factory=list)  # robustness variants: record/strategy/variant
     half_step_runs: list[RunEntry] = field(default_factory=list)  # --verify-step: record/strategy/half-step
+    strategy_flags: dict[str, dict[str, Any]] = field(default_factory=dict)  # strategy -> its entry's flags
+
+    def flags(self, strategy: str) -> dict[str, Any]:
+        """What the report needs of a strategy's entry (:meth:`Strategy.flags`); for a study.json written before
+        runs recorded them, the shipped entry's of that name (else none)."""
+        from orchestration.building_studies.strategies import recorded_flags
+
+        return recorded_flags(self.strategy_flags, strategy)
+
+    @property
+    def uncontrolled(self) -> str:
+        """The study's uncontrolled strategy (its entry says ``uncontrolled: true``)."""
+        marked = [s for s in self.strategies if self.flags(s).get("uncontrolled")]
+        if len(marked) != 1:
+            raise ValueError(f"study.json: {len(marked)} strategies are marked uncontrolled, not one")
+        return marked[0]
+
+    def paper(self, part: str) -> list[str]:
+        """The study's strategies with that part in the paper's figures (``controlled`` or ``passive``), in order."""
+        return [s for s in self.strategies if self.flags(s).get("paper_figures") == part]
 
     def run(self, key: str) -> RunEntry:
         """The run entry of ``record/strategy`` (or of a robustness variant, ``record/strategy/variant``, or of
@@ -199,6 +219,8 @@ class CaseStudyRecord:
             out["variant_runs"] = [e.to_json() for e in self.variant_runs]
         if self.half_step_runs:
             out["half_step_runs"] = [e.to_json() for e in self.half_step_runs]
+        if self.strategy_flags:
+            out["strategy_flags"] = self.strategy_flags
         return out
 
     @classmethod
@@ -217,4 +239,5 @@ class CaseStudyRecord:
             runs=[RunEntry.from_json(e) for e in d.get("runs", [])], indices=d.get("indices") or {},
             jobs_computed=d.get("jobs_computed", 0), resumed=d.get("resumed"), interrupted=d.get("interrupted"),
             metrics=d.get("metrics"), variant_runs=[RunEntry.from_json(e) for e in d.get("variant_runs", [])],
-            half_step_runs=[RunEntry.from_json(e) for e in d.get("half_step_runs", [])])
+            half_step_runs=[RunEntry.from_json(e) for e in d.get("half_step_runs", [])],
+            strategy_flags=d.get("strategy_flags") or {})

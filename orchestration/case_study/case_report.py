@@ -1,6 +1,7 @@
 """The case study's report: its sections as blocks, and every output of a study folder, regenerated from data.
 
-:func:`write_outputs` reads the study folder (``study.json`` and the runs' ``timeseries.csv``),
+:func:`write_outputs` reads the study folder (``study.json``, the numbers each run computed from its every step and
+the series its figures draw: :mod:`~orchestration.case_study.run_numbers`),
 so ``python orchestration/study.py --report STUDY_DIR`` rebuilds everything at any time: the
 numbers from :mod:`~orchestration.case_study.case_metrics`, the figures from
 :mod:`~orchestration.case_study.case_figures`, the text rendered by
@@ -17,15 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from components.physics.sosm_conditions import sosm_conditions
-from components.physics.sosm_controller_core import IsolatorModel, SosmGains
 from orchestration.building_studies.run_metrics import INDEX_COLUMNS, INDEX_MEANING, PEAK_COLUMNS
-from orchestration.case_study.case_config import SOSM_STRATEGIES, UNCONTROLLED
 from orchestration.case_study.case_figures import make_figures
 from orchestration.case_study.case_metrics import (
     REFERENCE_KEYS,
     Metrics,
-    Series,
+    Numbers,
     judged,
     load_metrics,
     write_tables,
@@ -58,7 +56,8 @@ def _order(key: str, study: CaseStudyRecord) -> tuple[int, int]:
 
 
 def _controlled(study: CaseStudyRecord) -> list[str]:
-    return [s for s in study.strategies if s in SOSM_STRATEGIES]
+    """The strategies that play the paper's controller (entries with ``paper_figures: controlled``)."""
+    return study.paper("controlled")
 
 
 def ground_reading(records: Mapping[str, RecordInfo]) -> str:
@@ -147,12 +146,12 @@ def gains_blocks(study: CaseStudyRecord) -> list[Block]:
 def claims_blocks(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[Block], list[Block]]:
     """The paper's claims (section 4.3, Fig. 15-17) on our system: the ratios (with the results), and every claim
     checked (a long table, at the end)."""
-    records, controlled = list(study.records), _controlled(study)
+    records, controlled, off = list(study.records), _controlled(study), study.uncontrolled
     lo, hi = study.config["paper_current_range"]
     rows = []
     for c in controlled:
         for r in records:
-            s, o = metrics.get((r, c)), metrics.get((r, UNCONTROLLED))
+            s, o = metrics.get((r, c)), metrics.get((r, off))
             if s is None or o is None:
                 rows.append([r, c, "–", "–", "–", "–", "–"])
                 continue
@@ -161,14 +160,14 @@ def claims_blocks(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[Block]
             rows.append([r, c, fmt(ra), "holds" if ra < 1 - TIE else "does not hold", fmt(rd),
                          "holds" if rd < 1 - TIE else "does not hold",
                          f"{fmt(s['current_min_A'])}-{fmt(s['current_max_A'])} A: {'yes' if ok_i else 'no'}"])
-    checks = check_claims(metrics, records, study.strategies, controlled=controlled or "sosm", tie=TIE,
+    checks = check_claims(metrics, records, study.strategies, controlled=controlled, uncontrolled=off, tie=TIE,
                           current_range=(lo, hi))
     judged = [c for c in checks if c.holds is not None]
     summary = [
         Block("h", "The paper's claims on our system", level=2),
         Block("p", "The paper (section 4.3, Fig. 16-17) reports that SOSM control reduces the top-floor "
                    "acceleration and the inter-storey drift against the passive structure, with the current "
-                   f"varying within {lo:g}-{hi:g} A. Ratios are SOSM / passive-off (below 1: SOSM lower). "
+                   f"varying within {lo:g}-{hi:g} A. Ratios are SOSM / {off} (below 1: SOSM lower). "
                    f"{sum(c.holds for c in judged)} of {len(judged)} checks of every claim hold (the table of "
                    "checks is at the end of the report)."),
         Block("table", header=["record", "strategy", "a_3 ratio", "acceleration claim", "drift ratio",
@@ -190,13 +189,15 @@ def claims_blocks(study: CaseStudyRecord, metrics: Metrics) -> tuple[list[Block]
 
 
 def gain_set_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
-    """Both SOSM gain sets against passive-off and passive-on, and the current statistics (Fig. 15)."""
-    controlled = _controlled(study)
+    """Both SOSM gain sets against the uncontrolled and the passive strategy (``paper_figures: passive``), and the
+    current statistics (Fig. 15)."""
+    controlled, passive = _controlled(study), study.paper("passive")
     if not controlled:
         return []
     rows, cur = [], []
     for r in study.records:
-        off, on = metrics.get((r, UNCONTROLLED)), metrics.get((r, "passive-on"))
+        off = metrics.get((r, study.uncontrolled))
+        on = metrics.get((r, passive[0])) if passive else None
         for c in controlled:
             m = metrics.get((r, c))
             if m is None:
@@ -220,7 +221,9 @@ def gain_set_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
                    "with a release band (not in the paper) and tuned with terms on the shares of time at its "
                    "2.5 A limit and at 0 A so that the current varies as in the paper's Fig. 15 "
                    "(docs/case_study.md). Percentages: this strategy's peak against "
-                   "passive-off (0 A) and passive-on (3 A); negative is lower. Indices as below."),
+                   f"{study.flags(study.uncontrolled).get('label')} ('off') and "
+                   f"{study.flags(passive[0]).get('label') if passive else 'no passive strategy'} ('on'); "
+                   "negative is lower. Indices as below."),
         Block("table", header=["record", "strategy", "a_3 m/s²", "vs off", "vs on", "max drift mm", "vs off",
                                "vs on", "x_base mm", "J1", "J2", "J5", "J8"], rows=rows),
         Block("h", "Current statistics (Fig. 15)", level=3),
@@ -231,26 +234,19 @@ def gain_set_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
     ]
 
 
-def sosm_condition_blocks(study: CaseStudyRecord, series: Series) -> list[Block]:
-    """Eq. (36)'s bounds tau, v_m, v_M along each SOSM run and the gain conditions after Eq. (39)."""
+def sosm_condition_blocks(study: CaseStudyRecord, numbers: Numbers) -> list[Block]:
+    """Eq. (36)'s bounds tau, v_m, v_M along each SOSM run and the gain conditions after Eq. (39), as each run
+    computed them from its every step."""
     rows = []
-    for strategy, doc in study.gain_sets.items():
-        gg = doc["gains"]
-        gains = SosmGains(lam=gg["lambda"], rho=gg["rho"], zeta=gg["zeta"], theta=gg["theta"], i_max=gg["i_max"])
-        for r in study.records:
-            ts = series.get((r, strategy))
-            if ts is None:
+    for r in study.records:
+        for strategy in study.strategies:
+            c = (numbers.get((r, strategy)) or {}).get("sosm_conditions")
+            if not c:
                 continue
-            info = study.records[r]
-            # relative base acceleration: recorded, or absolute minus ground (both m/s²)
-            arel = ts["building.arel_0"] if "building.arel_0" in ts else ts["building.a_0"] - ts["ground.ag"]
-            c = sosm_conditions(ts["time"], ts["building.x_0"], ts["building.v_0"], arel,
-                                ts["controller.i"], gains, IsolatorModel(), info.masses_kg[0],
-                                int(info.n_isolators or 2))
-            rows.append([r, strategy, fmt(c.tau), fmt(c.v_m), fmt(c.v_M), fmt(c.reaching_margin),
-                         "holds" if c.reaching_holds else "FAILS", f"{100 * c.share_pointwise:.0f} %",
-                         f"{100 * c.share_local:.1f} %",
-                         fmt(c.zeta_theta_over_rho), "holds" if c.zeta_theta_holds else "FAILS"])
+            rows.append([r, strategy, fmt(c["tau"]), fmt(c["v_m"]), fmt(c["v_M"]), fmt(c["reaching_margin"]),
+                         "holds" if c["reaching_holds"] else "FAILS", f"{100 * c['share_pointwise']:.0f} %",
+                         f"{100 * c['share_local']:.1f} %",
+                         fmt(c["zeta_theta_over_rho"]), "holds" if c["zeta_theta_holds"] else "FAILS"])
     if not rows:
         return []
     return [
@@ -274,10 +270,10 @@ def _comparisons(r: str, c: str, study: CaseStudyRecord, metrics: Metrics) -> li
     sosm = metrics[(r, c)]
     items = []
     for s in study.strategies:
-        if s in SOSM_STRATEGIES or (r, s) not in metrics:
+        if s in _controlled(study) or (r, s) not in metrics:
             continue
         o = metrics[(r, s)]
-        label = s + (f" ({study.best_current.get(r, math.nan):g} A)" if s == "best-constant" else "")
+        label = s + (f" ({study.best_current.get(r, math.nan):g} A)" if study.flags(s).get("needs_sweep") else "")
         items.append(
             f"**{c}** vs **{label}**: {compare(sosm['acc_3'], o['acc_3'])} it on peak top-floor acceleration "
             f"({fmt(sosm['acc_3'])} vs {fmt(o['acc_3'])} m/s², {pct(sosm['acc_3'], o['acc_3'])}) and "
@@ -438,7 +434,7 @@ def figure_blocks(folder: Path, figures: dict[str, Path]) -> list[Block]:
 
 
 def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures: dict[str, Path],
-                 series: Series | None = None) -> list[Block]:
+                 numbers: Numbers | None = None) -> list[Block]:
     """The report's blocks: provenance and failures, verdicts and tables (the results), the paper's claims, the
     gain sets, references, figures, then the long table of every claim checked."""
     valid = judged(study, metrics)  # ranked and judged: the numerically valid runs only
@@ -446,7 +442,7 @@ def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures
     return [*header_blocks(folder, study), *failed_blocks(study), *invalid_blocks(study),
             Block("p", ground_reading(study.records)),
             *gains_blocks(study), *verdict_blocks(study, valid), *tables_blocks(study, metrics), *claims,
-            *gain_set_blocks(study, valid), *sosm_condition_blocks(study, series or {}),
+            *gain_set_blocks(study, valid), *sosm_condition_blocks(study, numbers or {}),
             *reference_blocks(study, metrics), *sweep_blocks(study), *warning_blocks(study, metrics),
             *figure_blocks(folder, figures), *every_claim]
 
@@ -454,14 +450,14 @@ def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures
 def write_outputs(folder: Path, study: CaseStudyRecord, files: FigureFiles = PNG_ONLY) -> CaseStudyRecord:
     """(Re)write peaks.csv, indices.csv, sweep.csv, reference.csv, figures (PNG, and each of ``files.formats``),
     report.md/html (which embed the PNGs) and study.json."""
-    metrics, series = load_metrics(folder, study)
+    metrics, numbers, series = load_metrics(folder, study)
     write_tables(folder, study, metrics)
     figures = make_figures(folder, study, metrics, series, files)
-    blocks = build_report(folder, study, metrics, figures, series)
+    blocks = build_report(folder, study, metrics, figures, numbers)
     if study.config.get("benchmark") is not None:  # a controller benchmark: criteria.csv, its sections after the header
         from orchestration.case_study.benchmark_report import benchmark_outputs
 
-        blocks = [*blocks[:2], *benchmark_outputs(folder, study, series, files), *blocks[2:]]
+        blocks = [*blocks[:2], *benchmark_outputs(folder, study, numbers, files), *blocks[2:]]
     write_text(folder / "report.md", to_markdown(blocks))
     write_text(folder / "report.html", to_html(blocks, folder))
     study.metrics = {f"{r}/{s}": m for (r, s), m in metrics.items()}

@@ -41,7 +41,7 @@ from orchestration.building_studies.pool_arguments import add_pool_arguments
 from orchestration.building_studies.run_settings import run_overrides
 from orchestration.building_studies.study_file import key_files
 from orchestration.case_study import case_jobs
-from orchestration.case_study.case_config import UNCONTROLLED, LoadedStudy, StudySpec, load_study, variant_strategies
+from orchestration.case_study.case_config import GAIN_SETS, LoadedStudy, StudySpec, load_study, variant_strategies
 from orchestration.case_study.case_figures import STUDY_DPI
 from orchestration.case_study.case_jobs import (
     BENCHMARK_OUTPUTS_OVERRIDE,
@@ -53,7 +53,14 @@ from orchestration.case_study.case_jobs import (
     reference_job,
     sweep_job,
 )
-from orchestration.case_study.case_plan import PlannedJob, plan_cosim, plan_job, prepare, run_strategy_overrides
+from orchestration.case_study.case_plan import (
+    PlannedJob,
+    number_inputs,
+    plan_cosim,
+    plan_job,
+    prepare,
+    run_strategy_overrides,
+)
 from orchestration.case_study.case_records import (
     CaseStudyRecord,
     PreparedStudy,
@@ -129,7 +136,8 @@ def new_record(study: LoadedStudy, prepared: PreparedStudy, pool: BatchPool, com
         gains=prepared.gains, gains_file=str(study.gains_path) if prepared.gains else None,
         gain_sets=dict(prepared.gain_sets), gains_files={s: str(study.gain_set_path(s)) for s in prepared.gain_sets},
         provenance={**provenance(), "command": command, "algorithms": prepared.algorithms, "step_s": prepared.step},
-        batch={"scheduler": pool.scheduler, "workers": pool.n_workers})
+        batch={"scheduler": pool.scheduler, "workers": pool.n_workers},
+        strategy_flags={s: study.strategy(s).flags() for s in spec.strategies})
     if resumed is not None:
         record.started = resumed.started
         record.resumed = [*(resumed.resumed or []), utc_now()]
@@ -147,14 +155,19 @@ def shared_store() -> ResultStore | None:
         return None
 
 
-def count_jobs(spec: StudySpec, verify: bool = True, verify_step: bool = False) -> int:
+def count_jobs(study: LoadedStudy, verify: bool = True, verify_step: bool = False) -> int:
     """Jobs of a study: sweeps, co-simulations (twice with ``verify_step``) and (``verify``) references."""
+    spec = study.spec
     n = len(spec.records)
-    references = len([s for s in ("passive-off", "passive-on") if s in spec.strategies]) * spec.reference.enabled
-    references *= verify
+    references = len(reference_strategies(study)) * spec.reference.enabled * verify
     n_variants = len(spec.robustness.variant_names()) if spec.robustness is not None else 0
-    return (n * ("best-constant" in spec.strategies) + n * len(spec.strategies) * (1 + verify_step)
+    return (n * study.needs_sweep + n * len(spec.strategies) * (1 + verify_step)
             + n * len(variant_strategies(spec)) * n_variants + n * references)
+
+
+def reference_strategies(study: LoadedStudy) -> list[str]:
+    """The listed strategies whose constant current the Radau reference checks (``radau_reference: true``)."""
+    return [s for s in study.spec.strategies if study.strategy(s).entry.radau_reference]
 
 
 class JobRunner:
@@ -252,7 +265,8 @@ class JobRunner:
 
 
 def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
-    """The constant-current sweep of every record (for best-constant): into the record's sweep and best current."""
+    """The constant-current sweep of every record (for the strategies that take its best current): into the
+    record's sweep and best current."""
     spec, record = study.spec, runner.record
     extra = SweepInputs(spec.sweep.currents(spec.i_max), spec.objective.model_dump()).to_json()
     base = run_overrides(spec)
@@ -270,11 +284,11 @@ def run_sweeps(study: LoadedStudy, runner: JobRunner) -> None:
 def plan_run(study: LoadedStudy, runner: JobRunner, entry: RunEntry, outputs: str,
              planner: VariantPlanner | None = None) -> PlannedJob | None:
     """One record x strategy co-simulation, nominal or (``planner``) under ``entry.variant``: its entry filled in
-    (current, overrides) and its job planned; None if it cannot run (its best-constant sweep failed: the entry and
+    (current, overrides) and its job planned; None if it cannot run (the sweep it needs failed: the entry and
     the record say so). The strategies keep their nominal design (parameters, gains, the nominal sweep's current)."""
     spec, record = study.spec, runner.record
     r, s = entry.record, entry.strategy
-    if s == "best-constant" and r not in record.best_current:
+    if study.strategy(s).needs_sweep and r not in record.best_current:
         sweep = record.sweep.get(r)
         entry.error = (f"current sweep failed: {sweep.error if sweep else None}" if entry.variant is None
                        else "current sweep failed")
@@ -287,7 +301,9 @@ def plan_run(study: LoadedStudy, runner: JobRunner, entry: RunEntry, outputs: st
         extra = (*extra, *planner.overrides(r, entry.variant, extra))
     entry.current_A = strategy.constant_current(spec.i_max, best)
     entry.overrides = list(extra)
-    return plan_cosim(study, entry.key, (*strategy.common(run_overrides(spec)), *extra), strategy.recorded(outputs))
+    numbers = number_inputs(study, record, entry, figures=entry.variant is None)
+    return plan_cosim(study, entry.key, (*strategy.common(run_overrides(spec)), *extra), strategy.recorded(outputs),
+                      numbers)
 
 
 def longest_first(record: CaseStudyRecord) -> list[str]:
@@ -307,9 +323,10 @@ def plan_runs(study: LoadedStudy, runner: JobRunner) -> tuple[list[PlannedJob], 
             if (job := plan_run(study, runner, entry, outputs)) is not None:
                 runs.append(job)
         if spec.reference.enabled:
-            for s in ("passive-off", "passive-on"):
-                if s in spec.strategies:
-                    inputs = ReferenceInputs(0.0 if s == UNCONTROLLED else spec.i_max, spec.reference.rtol)
+            for s in reference_strategies(study):
+                current = study.strategy(s).constant_current(spec.i_max, None)
+                if current is not None:  # checked when the study was read (case_config.reference_problems)
+                    inputs = ReferenceInputs(current, spec.reference.rtol)
                     references.append(plan_job(study, f"{r}/{s}/reference", "reference", run_overrides(spec),
                                                inputs.to_json()))
     return runs, references
@@ -353,7 +370,8 @@ def plan_half_step_runs(study: LoadedStudy, runner: JobRunner, runs: list[Planne
         strategy = study.strategy(entry.strategy)
         try:
             jobs.append(plan_cosim(study, half.key, (*strategy.common(run_overrides(study.spec)),
-                                                     *(entry.overrides or []), *extra), strategy.recorded(outputs)))
+                                                     *(entry.overrides or []), *extra), strategy.recorded(outputs),
+                                   number_inputs(study, record, half, figures=False)))
         except ScenarioError as exc:  # e.g. a controller that cannot step at its own rate: this check only fails
             half.error = f"the half-step run cannot be made: {exc}"
             runner.done(JobResult(half.key, False, error=half.error, status="failed"), stored=True)
@@ -406,12 +424,12 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     (folder / "logs").mkdir(exist_ok=True)
     (folder / "runs").mkdir(exist_ok=True)
     write_json(folder / "study.json", record.to_json())
-    bar = ProgressBar(count_jobs(spec, verify, verify_step), spec.name, enabled=progress)
+    bar = ProgressBar(count_jobs(study, verify, verify_step), spec.name, enabled=progress)
     bar.write(pool.describe())
     runner = JobRunner(folder, record, spec, pool, bar)
     interrupted = False
     try:
-        if "best-constant" in spec.strategies:
+        if study.needs_sweep:
             run_sweeps(study, runner)
         runs, references = plan_runs(study, runner)
         half = plan_half_step_runs(study, runner, runs) if verify_step else []
@@ -452,8 +470,8 @@ def _base_sensitivity(args: argparse.Namespace, study: LoadedStudy, argv: list[s
     window = WINDOW_S if args.window is None else args.window
     if not window > 0:
         raise ValueError(f"--window must be positive, got {window}")
-    for s in ("sosm", "sosm-fig15"):
-        read_gains(study.gain_set_path(s))  # ScenarioError before anything is written
+    for gain_set in GAIN_SETS:
+        read_gains(study.gain_set_path(gain_set))  # ScenarioError before anything is written
     pool = open_pool(args, study.spec.workers, study.spec.max_worker_deaths)
     with pool:
         try:

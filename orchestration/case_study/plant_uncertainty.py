@@ -37,7 +37,7 @@ from components.identification.plant_sampling import (
 from components.physics.bouc_wen_core import BoucWenCurrentModel, device_problem
 from components.physics.mre_isolator_core import ParameterError
 from mre_common.atomic_files import atomic_write_text
-from orchestration.case_study.benchmark_criteria import CRITERIA, J6_REFERENCE, normalised
+from orchestration.case_study.benchmark_criteria import CRITERIA, j6_reference, normalised
 from orchestration.case_study.case_rendering import Block, fmt
 from orchestration.case_study.robustness_config import PlantSamplingSpec, VariantSpec
 from orchestration.master.errors import Problem, ScenarioError
@@ -213,7 +213,7 @@ def uncertainty_blocks(folder: Path, study: Any, vraw: dict[tuple[str, str, str]
     table, order = [], []
     sampled = [s for s in study.strategies if any(k[1] == s for k in vraw)]  # the strategies run on the plants
     for r in study.records:
-        base, ref = raw.get((r, baseline), {}), raw.get((r, J6_REFERENCE), {})
+        base, ref = raw.get((r, baseline), {}), raw.get((r, j6_reference(study.config)), {})
         order += _order_rows(vraw, sampled, r, lhs, base, ref, invalid)
         for s in sampled:
             nominal = normalised(raw.get((r, s), {}), base, ref)

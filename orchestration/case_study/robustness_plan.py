@@ -330,9 +330,9 @@ def check_variants(study: LoadedStudy, base: tuple[str, ...], sets: dict[str, di
         for r in spec.records:
             path = study.scenario_path(r)
             for s in variant_strategies(spec):
-                if s == "best-constant":  # the same unit as passive-on, its current known after the sweep
-                    continue
                 strategy = study.strategy(s)
+                if strategy.needs_sweep:  # its current is known after the sweep; checked with its unit's others
+                    continue
                 g = sets[strategy.entry.gains]["gains"] if strategy.entry.gains in sets else None
                 try:
                     extra = run_strategy_overrides(study, s, path, spec.i_max, g, 0.0)

@@ -24,16 +24,12 @@ from pathlib import Path
 from typing import Any
 
 from mre_common.atomic_files import atomic_write_text
-from orchestration.building_studies.run_metrics import read_timeseries
-from orchestration.case_study.benchmark_criteria import raw_criteria
-from orchestration.case_study.case_metrics import read_validity
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.case_rendering import Block, fmt
 
 NOMINAL = "nominal"
 JS = ("J3", "J4", "J5")
 COLUMNS = ("strategy", "variant", "record", *JS, *(f"{j}_change_pct" for j in JS), "complete")
-SOSM = ("sosm", "sosm-fig15")
 Rows = list[dict[str, Any]]
 
 
@@ -50,16 +46,16 @@ def variant_names(study: CaseStudyRecord) -> list[str]:
 
 
 def variant_raw(folder: Path, study: CaseStudyRecord) -> dict[tuple[str, str, str], dict[str, float] | None]:
-    """Raw criteria of every variant run that was run, by (record, strategy, variant); None for one that failed."""
+    """Raw criteria of every variant run that was run, as it computed them from its every step, by (record,
+    strategy, variant); None for one that failed."""
+    from orchestration.case_study.case_metrics import run_numbers_of
+
     vraw: dict[tuple[str, str, str], dict[str, float] | None] = {}
     for e in study.variant_runs:
         if not e.ok and e.status is None:
             continue  # not run (an interrupted study): no row; --resume runs it
-        path = folder / e.folder / "timeseries.csv"
-        read_validity(folder / e.folder, e)  # J9 from the run's energy section
-        vraw[(e.record, e.strategy, e.variant or "")] = (
-            raw_criteria(read_timeseries(path), study.records[e.record].masses_kg, e.energy)
-            if e.ok and path.is_file() else None)
+        found = run_numbers_of(folder, study, e) if e.ok else None
+        vraw[(e.record, e.strategy, e.variant or "")] = None if found is None else found["criteria"]
     return vraw
 
 
@@ -126,8 +122,9 @@ def verdict(rows: Rows, study: CaseStudyRecord) -> list[str]:
     ctrl = controllers(study)
     overall = {s: max((worst(rows, s, j) for j in JS), key=lambda w: w[0]) for s in ctrl}
     overall = {s: w for s, w in overall.items() if w[1]}
-    sosm = [s for s in SOSM if s in overall]
-    others = [s for s in overall if s not in SOSM]
+    paper = study.paper("controlled")  # the paper's controller: SOSM (entries with paper_figures: controlled)
+    sosm = [s for s in paper if s in overall]
+    others = [s for s in overall if s not in paper]
     if not sosm or not others:
         return ["The verdict needs an SOSM strategy and another controller, each with variant runs."]
     out = []

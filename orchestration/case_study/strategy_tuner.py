@@ -42,7 +42,7 @@ import yaml
 from mre_common.guard import invoked_as
 from mre_common.project_paths import git
 from orchestration.building_studies.pool_arguments import add_pool_arguments
-from orchestration.building_studies.run_metrics import CURRENT, read_timeseries
+from orchestration.building_studies.run_metrics import CURRENT, recorded_series
 from orchestration.building_studies.run_settings import RECORDED, run_overrides
 from orchestration.building_studies.strategies import (
     BEST,
@@ -184,11 +184,12 @@ def strategy_run_job(payload: dict[str, Any]) -> dict[str, float]:
 
     plan, _ = job_plan(payload, payload["parameters"])
     with tempfile.TemporaryDirectory(prefix=run_folder_prefix(os.getpid())) as tmp:
-        folder = Path(tmp) / "run"
-        outcome = run_plan(plan, folder, plots=False, progress=False)
-        if not outcome.result.complete:
-            raise RuntimeError(f"run {outcome.result.status}: {outcome.result.error}")
-        return run_peaks(read_timeseries(folder / "timeseries.csv"), float(payload["i_limit"]))
+        outcome = run_plan(plan, Path(tmp) / "run", plots=False, progress=False, results_file=False)
+    if not outcome.result.complete:
+        raise RuntimeError(f"run {outcome.result.status}: {outcome.result.error}")
+    current = getattr(plan.report, "current", None)
+    return run_peaks(recorded_series(outcome.recorder, None if current is None else str(current)),
+                     float(payload["i_limit"]))
 
 
 def folded(strategy: Strategy, gains: dict[str, float] | None) -> Strategy:
@@ -494,17 +495,17 @@ def _prepared(args: argparse.Namespace) -> tuple[LoadedStudy, dict[str, Target],
 def tune_all(study: LoadedStudy, targets: dict[str, Target], runs: Runner, out: Path, progress: bool
              ) -> tuple[dict[str, dict[str, Any]], str]:
     """Tune every target with the same budget and seed; each result and the strategy file's text."""
-    from orchestration.building_studies.strategies import builtin_strategies
+    from orchestration.engine_hooks import plan_scenario
 
     tuning, spec = _tuning(study), study.spec
-    off_strategy = study.library.get("passive-off", builtin_strategies()["passive-off"])
-    from orchestration.engine_hooks import plan_scenario
+    off_strategy = study.strategy(study.uncontrolled)  # the study's uncontrolled case: J is over its runs
 
     off_plans = {r: plan_scenario(study.scenario_path(r), run_overrides_of(study, off_strategy, r, {}))
                  for r in tuning.records}
     peaks = runs([(off_plans[r], {}, spec.i_max) for r in tuning.records])
     if any(p is None for p in peaks):
-        raise RuntimeError(f"a passive-off run of the training records failed: {getattr(runs, 'errors', [])[:1]}")
+        raise RuntimeError(f"a run of the uncontrolled strategy ({off_strategy.name}) on the training records failed: "
+                           f"{getattr(runs, 'errors', [])[:1]}")
     off = {r: p for r, p in zip(tuning.records, peaks, strict=True) if p is not None}
     results, entries = {}, {}
     for name, target in targets.items():

@@ -20,10 +20,10 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from orchestration.building_studies.strategies import (
-    BEST,
     Strategy,
     StrategyEntry,
     strategy_library,
+    uncontrolled_of,
 )
 from orchestration.building_studies.study_file import apply_overrides
 from orchestration.ida_study.suites import DEFAULT_PATTERNS, KNOWN_SUITES
@@ -247,6 +247,12 @@ class LoadedIda:
             self._library = strategy_library(files, self.spec.strategy_definitions, self.path, self.lines)
         return self._library
 
+    @property
+    def uncontrolled(self) -> str | None:
+        """The listed strategy whose entry says ``uncontrolled: true`` (None: none, or several): the indices are over
+        its runs."""
+        return uncontrolled_of([s for s in self.spec.strategies if isinstance(s, str)], self.library)
+
     def strategy_problems(self) -> list[Problem]:
         """Located problems of the strategies the study names: a missing strategy file, an unknown name, or an
         entry that needs the case study's best constant current (refused: :data:`NO_BEST_CONSTANT`)."""
@@ -268,10 +274,10 @@ class LoadedIda:
             whole = self.lines.get(("strategies",), (str(self.path), None))  # the list's line (a --set)
             file, line = whole if whole[0].startswith("--set") else self.lines.get(("strategies", k), whole)
             if s not in library:
-                known = ", ".join(n for n in library if n != "best-constant")
+                known = ", ".join(n for n in library if not library[n].needs_sweep)
                 problems.append(Problem(f"unknown strategy {s!r} (known: {known}; or {{name: NAME, overrides: "
                                         "[...]})", f"strategies.{k}", file, line))
-            elif BEST in library[s].entry.parameters.values():
+            elif library[s].needs_sweep:
                 problems.append(Problem(f"strategy {s!r} {NO_BEST_CONSTANT}", f"strategies.{k}", file, line))
         return problems
 

@@ -27,7 +27,6 @@ from orchestration.ida_study.ida_metrics import ENDED
 from orchestration.ida_study.ida_records import IdaInfo
 from orchestration.master.figure_files import PNG_ONLY, FigureFiles, save_figure
 
-COLORS = ("0.25", "tab:blue", "tab:red", "tab:purple", "tab:green", "tab:orange", "tab:brown", "tab:cyan")
 MAX_COLUMNS = 4  # panels per row of the IDA curves
 IDA_DPI = 110
 """The IDA figures' PNG resolution unless one is asked for (``--dpi``) [dots per inch]."""
@@ -118,9 +117,9 @@ def fragility_figure(path: Path, info: IdaInfo, spec: IdaSpec, fits: dict[str, d
         ls = spec.limit_states[name]
         strategies = list(fits[name])
         curves = {}
-        for k, (s, fit) in enumerate(fits[name].items()):
-            color = COLORS[k % len(COLORS)]
-            style = strategy_style(s, strategies)
+        for s, fit in fits[name].items():
+            style = strategy_style(s, strategies, info.flags(s).get("style"))
+            color = style["color"]
             frac = [(st.level, st.k / st.n) for st in fit.stripes if st.n]
             ax.plot([f[0] for f in frac], [f[1] for f in frac], ls="none", marker=style["marker"], color=color,
                     ms=4, alpha=0.8, mfc="none")

@@ -105,17 +105,17 @@ def residual_drifts(ts: dict[str, Any], storeys: dict[str, list[float]] | None) 
 def ida_job(payload: dict[str, Any]) -> dict[str, Any]:
     """One IDA run: the plan and its files, at the scale of its :class:`IdaInputs` (and the payload's
     ``parameters``, unit -> name -> value, set on top: a tuner's setting); an :class:`IdaRunResult`."""
-    from orchestration.building_studies.run_metrics import run_metrics
+    from orchestration.building_studies.run_metrics import recorded_series, run_metrics
     from orchestration.master.session import run_plan
 
     inputs = IdaInputs.from_json(payload)
     plan, _ = job_plan(payload, {**payload.get("parameters", {}), "ground": {"scale": inputs.scale}})
     started = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="mre-cosim-ida-") as tmp:
-        outcome = run_plan(plan, Path(tmp) / "run", plots=False, progress=False)
+    with tempfile.TemporaryDirectory(prefix="mre-cosim-ida-") as tmp:  # the metrics come from the recorder
+        outcome = run_plan(plan, Path(tmp) / "run", plots=False, progress=False, results_file=False)
     rec = outcome.recorder
-    ts = {"time": rec.times[: rec.count].copy()}
-    ts.update({name: rec.data[: rec.count, k].copy() for k, name in enumerate(rec.names)})
+    current = getattr(plan.report, "current", None)
+    ts = recorded_series(rec, None if current is None else str(current))
     result = outcome.result
     error = str(result.error) if result.error else None
     status = run_status(result.complete, error, result.status)

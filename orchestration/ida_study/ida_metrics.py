@@ -1,7 +1,7 @@
 """The numbers of an IDA study: a row per run (results.parquet/.csv) and the fragility fits (fragility.csv).
 
 Rows are plain column -> value dicts in the order of :data:`COLUMNS` (the table files'
-columns); indices are against passive-off at the same component and level.
+columns); indices are against the uncontrolled strategy (passive-off, shipped) at the same component and level.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def _no_none(metrics: dict[str, Any]) -> dict[str, float]:
 
 def result_row(comp: ComponentInfo, measure: str, level: float, strategy: str, res: RunOutcome | None,
                off_metrics: dict[str, Any] | None) -> dict[str, Any]:
-    """The row (COLUMNS) of one run; ``off_metrics``: passive-off's at the same component and level, if it ran."""
+    """The row (COLUMNS) of one run; ``off_metrics``: the uncontrolled strategy's at the same component and level."""
     label = run_label(comp.id, level, strategy)
     row: dict[str, Any] = {"record": comp.record, "component": comp.component, "record_id": comp.id,
                            "intensity_measure": measure, "intensity": level, "im_unscaled": comp.im,
@@ -69,12 +69,13 @@ def result_row(comp: ComponentInfo, measure: str, level: float, strategy: str, r
 
 
 def result_rows(components: list[ComponentInfo], measure: str, results: dict[str, RunOutcome], levels: list[float],
-                strategies: list[str]) -> list[dict[str, Any]]:
-    """One row per run (COLUMNS), component by component, level by level, strategy by strategy."""
+                strategies: list[str], uncontrolled: str | None) -> list[dict[str, Any]]:
+    """One row per run (COLUMNS), component by component, level by level, strategy by strategy; the indices over
+    the ``uncontrolled`` strategy's run at the same component and level (none without one)."""
     rows = []
     for comp in components:
         for level in levels:
-            off = results.get(run_label(comp.id, level, "passive-off"))
+            off = results.get(run_label(comp.id, level, uncontrolled)) if uncontrolled is not None else None
             done = off.result if off is not None else None
             off_metrics = done.metrics if done is not None and done.status == "ok" else None
             rows += [result_row(comp, measure, level, s, results.get(run_label(comp.id, level, s)), off_metrics)

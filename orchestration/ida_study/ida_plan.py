@@ -21,7 +21,7 @@ from components.physics.shear_building_core import BuildingParams
 from orchestration.batch.portable import PortablePlan, portable
 from orchestration.building_studies.gains_file import read_gains
 from orchestration.building_studies.in_process_model import NotMonolithic, system_setup
-from orchestration.building_studies.run_settings import RECORDED, every_step_problem
+from orchestration.building_studies.run_settings import RECORDED
 from orchestration.building_studies.strategies import Strategy, check_strategy
 from orchestration.engine_hooks import plan_scenario
 from orchestration.ida_study.ida_config import IdaSpec, LoadedIda
@@ -72,6 +72,7 @@ class PreparedIda:
     storeys: dict[str, list[float]] | None = None  # a ShearBuilding's k, c, P/h per storey (residual drift)
     gain_sets: dict[str, dict[str, Any]] = field(default_factory=dict)  # gain set -> gains document (those used)
     unlimited: list[str] = field(default_factory=list)  # strategies whose controller FMU has no i_max
+    named: dict[str, Strategy] = field(default_factory=dict)  # the strategies that are entries (not {name, overrides})
 
     def cleanup(self) -> None:
         shutil.rmtree(self.staging, ignore_errors=True)
@@ -299,10 +300,7 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
         # every run's span is a whole number of the coarsest period, so that each unit's own step (units.X.step,
         # e.g. a controller sampling at 1 ms over a 0.25 ms plant) ends on stop_time
         multiples = [round(u.step / sim.step) for u in loaded_scenario.units.values() if u.step is not None]
-        step = sim.step * math.lcm(1, *multiples)
-        problem = every_step_problem(sim)
-        if problem:
-            problems.append(Problem(problem, "scenario", str(path)))
+        step = sim.step * math.lcm(1, *multiples)  # output_interval/format: an IDA run keeps no time series
     except ScenarioError as exc:
         problems += exc.problems
     if problems or not records or step is None:
@@ -328,4 +326,4 @@ def prepare_ida(path: Path, loaded: LoadedIda | None, problems: list[Problem], r
                                     f"{len(masses) - 1} storeys", "storey_heights"))
     return PreparedIda(loaded, components, strategies, period, plans, masses, gain_sets.get("sosm"), staging,
                        time.perf_counter() - started, storeys=storey_constants(first),
-                       gain_sets=gain_sets, unlimited=sorted(unlimited))
+                       gain_sets=gain_sets, unlimited=sorted(unlimited), named=named)

@@ -99,17 +99,33 @@ class IdaInfo:
     interrupted: bool | None = None
     wall_time_s: float | None = None  # [s] the runs' phase
     runs_computed: int | None = None
+    strategy_flags: dict[str, dict[str, Any]] = field(default_factory=dict)  # strategy -> its entry's flags
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know (kept as read)
 
     _ORDER = ("name", "description", "study_file", "started", "finished", "config", "measure", "measure_label",
               "period_s", "strategies", "masses_kg", "gains", "planning_s", "components", "batch", "provenance",
-              "resumed", "interrupted", "wall_time_s", "runs_computed")
+              "resumed", "interrupted", "wall_time_s", "runs_computed", "strategy_flags")
+
+    def flags(self, strategy: str) -> dict[str, Any]:
+        """A strategy's flags (its entry's: uncontrolled, style, ...; a ``{name, overrides}`` strategy has none)."""
+        from orchestration.building_studies.strategies import recorded_flags
+
+        return recorded_flags(self.strategy_flags, strategy)
+
+    @property
+    def uncontrolled(self) -> str | None:
+        """The study's uncontrolled strategy (its entry says ``uncontrolled: true``); None if it lists none: its
+        rows then have no indices."""
+        marked = [s for s in self.strategies if self.flags(s).get("uncontrolled")]
+        return marked[0] if len(marked) == 1 else None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
         for key in self._ORDER:
             value = getattr(self, key)
             if key in ("resumed", "interrupted", "wall_time_s", "runs_computed") and value is None:
+                continue
+            if key == "strategy_flags" and not value:
                 continue
             out[key] = [c.to_json() for c in value] if key == "components" else value
         return {**out, **self.extra}

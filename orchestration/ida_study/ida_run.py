@@ -82,6 +82,8 @@ def new_info(prepared: PreparedIda, pool: BatchPool, command: list[str], resumed
                     for c in prepared.components],
         batch={"scheduler": pool.scheduler, "workers": pool.n_workers, "dashboard": pool.dashboard},
         provenance={**provenance(), "command": command},
+        strategy_flags={s: (prepared.named[s].flags() if s in prepared.named else {"label": s})
+                        for s in prepared.strategies},
         extra={**({"gains_fig15": prepared.gain_sets["sosm-fig15"]} if "sosm-fig15" in prepared.gain_sets else {}),
                **({"no_controller_i_max": prepared.unlimited} if prepared.unlimited else {})})
     if resumed is not None:
@@ -173,7 +175,8 @@ def run_ida(prepared: PreparedIda, folder: Path, pool: BatchPool, progress: bool
     info.wall_time_s = time.perf_counter() - t0
     info.runs_computed = sum(1 for run in pending if labels[run.key] in results)
     write_json(folder / "ida.json", info.to_json())
-    rows = result_rows(info.components, info.measure, results, list(spec.intensity.levels), list(prepared.strategies))
+    rows = result_rows(info.components, info.measure, results, list(spec.intensity.levels), list(prepared.strategies),
+                       info.uncontrolled)
     write_outputs(folder, info, rows, files)
     bad = [r for r in rows if r["status"] not in ENDED]
     print(f"IDA {'interrupted' if interrupted else 'done'}: {folder} ({len(rows)} runs, {len(bad)} not ended: "

@@ -157,11 +157,13 @@ class _PlanRun:
     """One run of a plan, in stages: :meth:`__init__` claims the folder and forks the writers, :meth:`simulate`
     steps the units, :meth:`write` writes the results, the manifest and the summary (see :func:`run_plan`)."""
 
-    def __init__(self, plan: SystemPlan, out: Path | None, plots: bool, files: FigureFiles) -> None:
+    def __init__(self, plan: SystemPlan, out: Path | None, plots: bool, files: FigureFiles,
+                 results_file: bool = True) -> None:
         self.plan = plan
         self.sc = sc = plan.loaded.scenario
         self.plots = plots
         self.files = files
+        self.results_file = results_file
         self.folder = new_run_folder(Path(sc.results.dir), sc.name, out)
         self.described = describe_run(plan)
         self.kinds = [column_kind(plan.descriptions[u].variables[v]) for u, v in plan.recorded]
@@ -177,7 +179,7 @@ class _PlanRun:
     def _start_csv_process(self) -> CsvProcess | None:
         """timeseries.csv written by a forked process while the units step (:class:`CsvProcess`), where it can be."""
         plan = self.plan
-        if self.output != (1, "csv") or not CsvProcess.wanted(self.rows, self.kinds):
+        if not self.results_file or self.output != (1, "csv") or not CsvProcess.wanted(self.rows, self.kinds):
             return None
         if self.storage is None:
             self.storage = RowStorage(self.rows, len(plan.recorded), self.folder, shared=True)
@@ -241,7 +243,7 @@ class _PlanRun:
             plotter.cancel()
         elif plotter is not None:
             plotter.draw(recorder.count)  # drawn while the summary and the manifest are made (and the CSV finished)
-        if self.csv_process is None:
+        if self.csv_process is None and self.results_file:
             self._save(f"timeseries.{output[1]}", lambda: write_results(folder, recorder, *output))
         if self.plots and plotter is None and recorder.count > 1:
             self._save("plots (*.png)", lambda: _plot_inline(recorder, self.plan, folder, self.described, self.files))
@@ -263,7 +265,8 @@ class _PlanRun:
             **({"executor_note": result.executor_note} if result.executor_note else {}),
             "unit_warnings": self.log.warnings,
             "results_file": {"file": f"timeseries.{output[1]}", "every_nth_step": output[0],
-                             "rows": rows_written(recorder.count, output[0])},
+                             "rows": rows_written(recorder.count, output[0])} if self.results_file else
+            {"file": None, "every_nth_step": output[0], "rows": 0},
         }
         summary |= report_summary(recorder, plan.report, plan.report_hook, self.described, set(summary))
         return summary
@@ -332,8 +335,13 @@ def run_plan(
     progress: bool = False,
     stop: StopRequest | None = None,
     figure_files: FigureFiles | None = None,
+    results_file: bool = True,
 ) -> RunOutcome:
     """Execute a checked plan and write its run folder (partial results if it fails or is stopped).
+
+    ``results_file=False``: no ``timeseries.*`` is written (``summary.json``'s ``results_file.file`` is null); every
+    step is still recorded in :attr:`RunOutcome.recorder`, and the summary's peaks come from it as always. For a
+    caller that computes what it needs from the recorder (the studies' jobs) and keeps no time series.
 
     ``figure_files`` says how the figures are written (PNG resolution, SVG or PDF beside it; default: PNG at
     :data:`~orchestration.master.report.RUN_DPI`); a bad value is a ``ValueError`` before anything is written.
@@ -348,5 +356,5 @@ def run_plan(
     problem = files.problem()
     if problem:
         raise ValueError(f"figure_files: {problem}")
-    run = _PlanRun(plan, out, plots, files)  # the run folder claimed, the CSV and figure processes forked
+    run = _PlanRun(plan, out, plots, files, results_file)  # the folder claimed, the CSV and figure processes forked
     return run.write(run.simulate(progress, stop))

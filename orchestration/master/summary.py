@@ -50,9 +50,10 @@ class VariableRange:
 
 @dataclass(frozen=True)
 class ResultsFile:
-    """The run's results file: its name, the interval of the rows it keeps, how many it holds."""
+    """The run's results file: its name (None: the run was asked to write none, see
+    :func:`~orchestration.master.session.run_plan`), the interval of the rows it keeps, how many it holds."""
 
-    file: str
+    file: str | None
     every_nth_step: int
     rows: int
 

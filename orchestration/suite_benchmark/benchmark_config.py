@@ -23,6 +23,7 @@ from pydantic import (
     model_validator,
 )
 
+from orchestration.building_studies.strategies import uncontrolled_problems
 from orchestration.building_studies.study_file import apply_overrides
 from orchestration.case_study.case_config import ObjectiveSpec
 from orchestration.ida_study.ida_config import BENCHMARK_KEY, IdaSpec, LoadedIda
@@ -113,7 +114,11 @@ def load_benchmark(path: Path | str, overrides: tuple[str, ...] = ()
         raise ScenarioError(Problem("a suite benchmark chooses its records with benchmark.train and "
                                     "benchmark.score, not events", "events", *lines.get(("events",),
                                                                                                (str(path), None))))
-    if "passive-off" not in spec.strategy_names:
-        raise ScenarioError(Problem("strategies must include passive-off: every criterion is against it",
-                                    "strategies", *lines.get(("strategies",), (str(path), None))))
-    return LoadedIda(spec, path, lines), bench
+    loaded = LoadedIda(spec, path, lines)
+    problems = loaded.strategy_problems()  # unknown names first: then the uncontrolled case, which every criterion
+    if not problems and loaded.uncontrolled is None:  # is over
+        problems = uncontrolled_problems([s for s in spec.strategies if isinstance(s, str)], loaded.library, lines,
+                                         path, "strategies")
+    if problems:
+        raise ScenarioError(problems)
+    return loaded, bench

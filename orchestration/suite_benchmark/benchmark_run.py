@@ -123,7 +123,7 @@ def check_names(loaded: LoadedIda, bench: SuiteBenchmarkSpec) -> list[str]:
 
 def enough_records(split: EventSplit, scored: list[str], bench: SuiteBenchmarkSpec, loaded: LoadedIda) -> None:
     """ScenarioError when the scored records are too few for any Holm-corrected signed-rank test to pass."""
-    compared = len([s for s in scored if s != "passive-off"])
+    compared = len([s for s in scored if s != loaded.uncontrolled])
     family = compared * (compared - 1) // 2 * len(bench.criteria)
     need = min_records_for(bench.alpha / max(1, family))
     if len(split.score) < need:
@@ -134,8 +134,8 @@ def enough_records(split: EventSplit, scored: list[str], bench: SuiteBenchmarkSp
 
 
 def training_study(loaded: LoadedIda, bench: SuiteBenchmarkSpec, split: EventSplit) -> PreparedIda:
-    """The training records' components planned for passive-off and every strategy to tune."""
-    spec = loaded.spec.model_copy(update={"events": split.train, "strategies": ["passive-off", *bench.tune]})
+    """The training records' components planned for the uncontrolled strategy and every strategy to tune."""
+    spec = loaded.spec.model_copy(update={"events": split.train, "strategies": [loaded.uncontrolled, *bench.tune]})
     return prepare_ida(loaded.path, LoadedIda(spec, loaded.path, loaded.lines), [], None)
 
 
@@ -302,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
             write_json(folder / "benchmark.json", info)
             print(f"interrupted while tuning: nothing scored ({folder})", file=sys.stderr)
             return 1
-        except RuntimeError as exc:  # passive-off failed on a training run: no J can be formed
+        except RuntimeError as exc:  # the uncontrolled strategy failed on a training run: no J can be formed
             info["error"] = str(exc)
             write_json(folder / "benchmark.json", info)
             print(f"error: {exc}; nothing scored ({folder})", file=sys.stderr)
@@ -342,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     failed = [r for r in rows if r["status"] not in ENDED]
     info["failed_runs"] = [f"{r['record_id']}/{r['strategy']}: {r['status']} {r['error']}" for r in failed]
     level = min(float(r["intensity"]) for r in rows)
-    compared = [s for s in scored if s != "passive-off"]
+    compared = [s for s in scored if s != loaded.uncontrolled]
     from orchestration.verdict import main as verdict_main
 
     buf = io.StringIO()

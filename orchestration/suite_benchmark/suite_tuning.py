@@ -177,11 +177,15 @@ def tune_one(target: SuiteTarget, runner: SuiteRunner, off: list[dict[str, float
 
 def tune_all(prepared: PreparedIda, targets: Mapping[str, SuiteTarget], runner: SuiteRunner, obj: ObjectiveSpec,
              budget: int, seed: int, progress: bool) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
-    """Passive-off on every training cell, then every target with the same budget and seed: each result, and the
-    passive-off runs' peaks (RuntimeError if one of those failed: no J can be formed)."""
-    off = runner("passive-off", [{}])[0]
+    """The uncontrolled strategy (passive-off in the shipped file) on every training cell, then every target with the
+    same budget and seed: each result, and the uncontrolled runs' peaks (RuntimeError if one of those failed: no J
+    can be formed)."""
+    uncontrolled = prepared.study.uncontrolled
+    if uncontrolled is None:  # refused when the file was read (benchmark_config)
+        raise RuntimeError("the training study lists no uncontrolled strategy")
+    off = runner(uncontrolled, [{}])[0]
     if any(p is None for p in off):
-        raise RuntimeError(f"a passive-off run of the training records failed: {runner.errors[:1]}")
+        raise RuntimeError(f"a run of {uncontrolled} on the training records failed: {runner.errors[:1]}")
     results = {}
     for name, target in targets.items():
         results[name] = r = tune_one(target, runner, [p for p in off if p is not None], obj, budget, seed)

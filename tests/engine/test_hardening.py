@@ -52,8 +52,6 @@ def test_a_run_folder_is_resolved_when_it_is_made_so_a_later_chdir_cannot_move_i
     (('records={"../up": elcentro.yaml}',), "records.../up", "must be a plain name"),
     (("strategy_definitions={" + "s" * 250 + ": {parameters: {mode: passive, i_passive: 1.0}}}",
       "strategies=[passive-off, " + "s" * 250 + "]"), "strategies.1", "bytes per name"),
-    (("strategy_definitions={x: {parameters: {mode: passive, i_passive: '${best_current}'}}}",
-      "strategies=[passive-off, x]"), "strategies.1", "only a study that lists 'best-constant'"),
 ])
 def test_a_study_name_that_would_leave_its_folder_or_cannot_be_filled_is_refused_at_load(tmp_path, sets, key, text):
     """Strategy, record and variant ids name run folders (runs/<record>-<strategy>--<variant>): checked when the

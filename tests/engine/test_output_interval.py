@@ -2,16 +2,14 @@
 
 The reference is the same run at every step in CSV: the decimated file's rows are its rows (every n-th and the
 last), the Parquet values its values to float32, and summary.json's peaks and statistics are identical (they
-come from every step either way). Bad values are exit 2 naming the key; a study refuses them (its criteria need
-every step).
+come from every step either way). Bad values are exit 2 naming the key. A study's runs take them too (their
+numbers come from every step, in the run): tests/studies/test_study_outputs.py.
 """
 
 from __future__ import annotations
 
 import csv
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +77,27 @@ def test_parquet_holds_the_rows_as_float32_and_time_as_float64(full, tmp_path):
     _same_summary(full, dec)
 
 
+def test_a_run_asked_for_no_results_file_writes_none_and_records_every_step(full, tmp_path):
+    """``run_plan(..., results_file=False)`` (a study's run without ``timeseries: true``): no timeseries.*, the same
+    summary, and the recorder still holds every step, as the full CSV has it (12 significant digits)."""
+    from orchestration.building_studies.run_metrics import recorded_series
+    from orchestration.engine_hooks import plan_scenario
+    from orchestration.master.session import run_plan
+
+    plan = plan_scenario(SCENARIO, ("simulation.stop_time=1.237",))
+    outcome = run_plan(plan, tmp_path / "none", plots=False, results_file=False)
+    assert outcome.result.complete
+    assert not list((tmp_path / "none").glob("timeseries*")) and not list((tmp_path / "none").glob("*.png"))
+    summary = json.loads((tmp_path / "none" / "summary.json").read_text())
+    assert summary["results_file"] == {"file": None, "every_nth_step": 1, "rows": 0}
+    _same_summary(full, tmp_path / "none")
+    names, every = _csv(full / "timeseries.csv")
+    series = recorded_series(outcome.recorder)
+    assert list(series) == names
+    for k, name in enumerate(names):
+        assert np.allclose(series[name], every[:, k], rtol=1e-11, atol=1e-300), name
+
+
 @pytest.mark.parametrize(("value", "expected"), [
     ("0", "simulation.output_interval"), ("-3", "simulation.output_interval"),
     ("1.5", "simulation.output_interval"), ("'10'", "simulation.output_interval"),
@@ -95,18 +114,6 @@ def test_an_unknown_format_is_exit_2(tmp_path, capsys):
     assert run_main([str(SCENARIO), *SHORT, "--set", "simulation.output_format=hdf5",
                      "--out", str(tmp_path / "never")]) == 2
     assert "simulation.output_format" in capsys.readouterr().err
-
-
-def test_a_study_refuses_a_decimated_results_file(tmp_path):
-    study = tmp_path / "study.yaml"
-    study.write_text(f"extends: {PROJECT / 'scenarios' / 'case_study.yaml'}\nname: dec\n"
-                     f"records: {{elcentro: {SCENARIO}}}\nstrategies: [passive-off]\nreference: {{enabled: false}}\n"
-                     "overrides: [simulation.stop_time=1, simulation.output_interval=10]\n")
-    done = subprocess.run([sys.executable, str(PROJECT / "orchestration" / "study.py"), str(study),
-                           "--out", str(tmp_path / "never")], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 2, done.stderr
-    assert "a study computes its criteria from every step" in done.stderr
-    assert not (tmp_path / "never").exists()
 
 
 @pytest.mark.slow

@@ -10,9 +10,10 @@ import matplotlib
 import pytest
 from PIL import Image
 
+from orchestration.building_studies.strategies import builtin_strategies, recorded_flags
 from orchestration.case_study.benchmark_report import pareto_figure, pareto_plot
 from orchestration.case_study.case_figures import profiles_figure, save
-from orchestration.figure_axes import STRATEGY_STYLES, coincident, strategy_style
+from orchestration.figure_axes import coincident, strategy_style
 from orchestration.ida_study.ida_figures import ida_figure
 from orchestration.master.figure_files import FigureFiles
 
@@ -30,7 +31,8 @@ def legend_texts(fig) -> list[str]:
 def study(records=("elcentro", "kobe"), figure_units: dict | None = None) -> SimpleNamespace:
     return SimpleNamespace(strategies=STRATEGIES, records={r: SimpleNamespace(scale=0.5, masses_kg=[1.0] * 4)
                                                            for r in records},
-                           config={"figure_units": figure_units} if figure_units else {})
+                           config={"figure_units": figure_units} if figure_units else {},
+                           flags=lambda s: recorded_flags({}, s))  # the shipped entries' styles
 
 
 def metrics(best_offset: float) -> dict:
@@ -45,11 +47,19 @@ def metrics(best_offset: float) -> dict:
     return out
 
 
-def test_every_strategy_has_its_own_line_style_and_marker():
-    pairs = [(str(ls), m) for ls, m in STRATEGY_STYLES.values()]
+def test_every_shipped_strategy_has_its_own_line_style_marker_and_colour():
+    """The styles are the entries' (scenarios/strategies.yaml), each its own; a strategy without one gets one by
+    its place, with a marker no shipped entry uses."""
+    shipped = builtin_strategies()
+    looks = [strategy_style(name, list(shipped), s.entry.style.model_dump()) for name, s in shipped.items()]
+    pairs = [(str(look["ls"]), look["marker"]) for look in looks]
     assert len(set(pairs)) == len(pairs) and len({m for _, m in pairs}) == len(pairs)
-    order = ["mine", "yours", *STRATEGY_STYLES]
-    assert strategy_style("mine", order) != strategy_style("yours", order)
+    assert len({look["color"] for look in looks}) == len(looks)
+    order = ["mine", "yours", *shipped]
+    mine, yours = strategy_style("mine", order), strategy_style("yours", order)
+    assert mine != yours and not {mine["marker"], yours["marker"]} & {m for _, m in pairs}
+    assert strategy_style("sosm-fig15", order, {"line": [6.0, 2.0]})["ls"] == (0, (6.0, 2.0))  # dashes
+    assert strategy_style("x", order, {"line": []})["ls"] == "-"  # no dashes: solid
 
 
 def test_curves_coincide_within_half_a_percent_of_the_axis_span():

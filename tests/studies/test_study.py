@@ -51,8 +51,8 @@ def test_shortened_study_end_to_end(tmp_path, elcentro):
     out = tmp_path / "study"
     proc = study_cli(str(STUDY), "--set", "overrides=[simulation.stop_time=3]",
                      "--set", "records={elcentro: elcentro.yaml, hachinohe: hachinohe.yaml}",
-                     "--set", "strategies=[passive-off, sosm, sosm-fig15]", "--out", str(out), "--quiet", "--verify",
-                     cwd=tmp_path)
+                     "--set", "strategies=[passive-off, sosm, sosm-fig15]", "--set", "timeseries=true",
+                     "--out", str(out), "--quiet", "--verify", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "beyond the identified ±8 mm" in proc.stderr  # El Centro at 0 A goes beyond 8 mm in its first 3 s
     for name in ("peaks.csv", "indices.csv", "reference.csv", "report.md", "report.html", "study.json",
@@ -143,7 +143,7 @@ def test_a_failed_run_does_not_lose_the_others(tmp_path):
     spec.write_text(yaml.safe_dump({
         "name": "mini", "records": {"good": str(PROJECT / "scenarios" / "hachinohe.yaml"), "bad": str(bad)},
         "strategies": ["passive-off", "on-off"], "overrides": ["simulation.stop_time=2"],
-        "reference": {"enabled": False}, "gains": "none.yaml"}))
+        "reference": {"enabled": False}, "gains": "none.yaml", "timeseries": True}))
     out = tmp_path / "study"
     proc = study_cli(str(spec), "--out", str(out), "--quiet", cwd=tmp_path)
     assert proc.returncode == 1, proc.stderr
