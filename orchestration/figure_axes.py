@@ -77,6 +77,26 @@ def coincidence_note(earlier: str, later: str) -> str:
     return f"{earlier} coincides with {later}"
 
 
+def legend_below(fig: Any, notes: Sequence[str], width: int = 110, **legend: Any) -> None:
+    """One legend for the whole figure, under its panels, where it hides nothing and takes no width from them:
+    every labelled line of every panel (once per label), then ``notes`` as entries without a line, each wrapped to
+    ``width`` characters. Call it after ``tight_layout``: the saved figure is cropped to what is drawn."""
+    import textwrap
+
+    from matplotlib.lines import Line2D
+
+    handles: dict[str, Any] = {}
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    notes = [textwrap.fill(note, width) for note in dict.fromkeys(notes)]
+    if not handles and not notes:
+        return
+    options = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0), "frameon": False, "fontsize": 8,
+               "ncol": 1 if notes else max(1, min(len(handles), 5))} | legend
+    fig.legend([*handles.values(), *(Line2D([], [], ls="none") for _ in notes)], [*handles, *notes], **options)
+
+
 def add_legend_notes(ax: Any, notes: Sequence[str], **legend: Any) -> None:
     """The axes' legend with ``notes`` as entries without a line (nothing new without notes and a legend)."""
     from matplotlib.lines import Line2D

@@ -134,7 +134,7 @@ def verdicts(rows: Rows, best: str, records: list[str]) -> list[str]:
             text += f"; ties (within {100 * TIE:g} %" + (f", or the step's change, up to {100 * widest:.2g} %"
                                                        if widest > TIE else "") + f") on {ties}"
         d3 = [100 * (by[(r, s)]["J3"] / by[(r, best)]["J3"] - 1) for r in d5]
-        text += f". Base displacement J3 against it: {min(d3):+.0f} to {max(d3):+.0f} %."
+        text += f". Base displacement J3 against it: {_signed(min(d3))} to {_signed(max(d3))} %."
         if invalid:
             text += f" Not judged on {', '.join(invalid)}: numerically invalid."
         out.append(text)
@@ -184,6 +184,12 @@ def tie_margin(a: dict[str, Any], b: dict[str, Any], criterion: str) -> float:
     return max(TIE, step)
 
 
+def _signed(value: float) -> str:
+    """A change in per cent, signed and whole (``+3``, ``-26``; ``0``, never ``-0``)."""
+    whole = round(value)
+    return f"{whole:+d}" if whole else "0"
+
+
 def _span(values: list[float]) -> str:
     return f"{values[0]:.1f} %" if len(values) == 1 or abs(values[-1] - values[0]) < 0.05 else \
         f"{values[0]:.1f}–{values[-1]:.1f} %"
@@ -199,7 +205,7 @@ def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from orchestration.figure_axes import add_legend_notes, coincidence_note, coincident, strategy_style
+    from orchestration.figure_axes import coincidence_note, coincident, legend_below, strategy_style
 
     n = len(records)
     cols = min(n, 2)
@@ -232,8 +238,8 @@ def pareto_figure(rows: Rows, records: list[str], best: str, baseline: str,
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     notes = [f"{note} ({'every record' if on == records else ', '.join(on)})" for note, on in where.items()]
-    add_legend_notes(axes.flat[0], notes, fontsize=7, loc="best")
     fig.tight_layout()
+    legend_below(fig, notes, ncol=4)  # under the panels: inside one it hid points
     return fig
 
 

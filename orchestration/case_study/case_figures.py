@@ -17,10 +17,10 @@ from orchestration.case_study.case_metrics import Metrics, Series, pareto_front
 from orchestration.case_study.case_records import CaseStudyRecord
 from orchestration.case_study.run_numbers import TOP_FLOOR
 from orchestration.figure_axes import (
-    add_legend_notes,
     coincidence_note,
     coincident,
     few_ticks,
+    legend_below,
     plain_log_axis,
     strategy_style,
 )
@@ -119,6 +119,7 @@ def current_figure(study: CaseStudyRecord, series: Series, metrics: Metrics) -> 
     i_max, hi = study.config["i_max"], study.config["paper_current_range"][1]
     fig, axes = plt.subplots(len(records), len(controlled), figsize=(8 * len(controlled) ** 0.5, 1.9 * len(records)),
                              squeeze=False, sharey=True)
+    device = False
     for col, s in enumerate(controlled):
         for ax, r in zip(axes[:, col], records, strict=True):
             ts = series.get((r, s))
@@ -127,14 +128,16 @@ def current_figure(study: CaseStudyRecord, series: Series, metrics: Metrics) -> 
                 ax.plot(ts["time"], ts["controller.i"], color=style(study, s)["color"], lw=0.6)
                 if "coil.i" in ts:  # a plant with a coil lag: the device current, dashed, beside the command
                     ax.plot(ts["time"], ts["coil.i"], color="0.2", lw=0.5, ls="--")
+                    device = True
             ax.axhline(hi, color="0.5", ls="--", lw=0.8)
             ax.axhline(limit, color="0.5", ls=":", lw=0.8)
             ax.set(ylabel="current [A]", ylim=(-0.1, i_max * 1.08))
-            device = ", dark dashed: the device current" if ts is not None and "coil.i" in ts else ""
-            ax.set_title(f"{named(study, r)}: {s} current (dashed {hi:g} A as in the paper, dotted its limit "
-                         f"{limit:g} A{device})", fontsize=9)
+            ax.set_title(f"{named(study, r)}: {s} (limit {limit:g} A)", fontsize=9)  # short: columns sit side by side
             ax.grid(alpha=0.3)
         axes[-1, col].set_xlabel("time [s]")
+    fig.suptitle(f"SOSM current command; dashed grey: {hi:g} A, the top of the paper's range; dotted grey: the "
+                 "controller's limit" + ("; dark dashed: the device current behind the coil" if device else ""),
+                 fontsize=9)
     fig.tight_layout()
     return fig
 
@@ -164,6 +167,7 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
     records = list(study.records)
     unit = _units(study)["acceleration"]
     fig, axes = plt.subplots(len(records), 1, figsize=(8, 1.9 * len(records)), squeeze=False)
+    where: dict[str, list[str]] = {}
     for ax, r in zip(axes[:, 0], records, strict=True):
         drawn = {}
         passive, controlled = study.paper("passive"), study.paper("controlled")
@@ -180,14 +184,14 @@ def top_acceleration_figure(study: CaseStudyRecord, series: Series) -> Any:
             if len(strong):
                 ax.set_xlim(0.0, min(ref_ts["time"][-1], strong[-1] + 5.0))
         ax.set(ylabel=f"acceleration [{acceleration_axis([], unit)[1]}]")
-        ax.set_title(f"{named(study, r)}: top-floor (3rd floor) absolute acceleration, strong-motion window",
-                     fontsize=9)
+        ax.set_title(f"{named(study, r)}: top-floor absolute acceleration, strong-motion window", fontsize=9)
         ax.grid(alpha=0.3)
         low, high = ax.get_ylim()
-        add_legend_notes(ax, [coincidence_note(*p) for p in coincident(drawn, high - low)], fontsize=7,
-                         loc="upper right")
+        for pair in coincident(drawn, high - low):
+            where.setdefault(coincidence_note(*pair), []).append(named(study, r))
     axes[-1, 0].set_xlabel("time [s]")
     fig.tight_layout()
+    legend_below(fig, _where(where, [named(study, r) for r in records]), ncol=4)  # a legend in a panel hid motion
     return fig
 
 
@@ -225,10 +229,8 @@ def profiles_figure(study: CaseStudyRecord, metrics: Metrics) -> Any:
         for ax in axes[row]:
             ax.grid(alpha=0.3)
             few_ticks(ax.xaxis)
-    # the legend right of the panels, where it hides no profile
-    add_legend_notes(axes[0, 1], _where(where, [named(study, r) for r in records]), fontsize=7,
-                     loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     fig.tight_layout()
+    legend_below(fig, _where(where, [named(study, r) for r in records]))  # under the grid: it hides no profile
     return fig
 
 
@@ -276,8 +278,9 @@ def sweep_figure(study: CaseStudyRecord) -> Any:
         line = ax.plot([q["current_A"] for q in sw.rows], [q["J"] for q in sw.rows], marker=".",
                        label=named(study, r))[0]
         ax.plot([sw.best_current_A], [sw.best_J], marker="o", ms=8, mfc="none", color=line.get_color())
-    ax.set(xlabel="constant current [A]", ylabel="objective J", yscale="log",
+    ax.set(xlabel="constant current [A]", ylabel="objective J",
            title="constant-current sweep (in-process); circle = best")
+    plain_log_axis(ax.yaxis)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     return fig

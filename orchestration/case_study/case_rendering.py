@@ -78,12 +78,33 @@ def _html_inline(text: str) -> str:
     return re.sub(r"`(.+?)`", r"<code>\1</code>", t)
 
 
+_NUMBER = re.compile(r"^[+\-−]?(\d[\d.,]*|\.\d+)([eE][+\-]?\d+)?( ?(%|s|A|mm|m/s²|N))?$")
+
+
+def _numeric(cells: list[str]) -> bool:
+    """Whether a table column holds numbers (with a unit at most; – for a missing one): drawn right-aligned."""
+    values = [c.strip() for c in cells if c.strip() not in ("", "–", "-")]
+    return bool(values) and all(_NUMBER.match(v) for v in values)
+
+
+def _table_html(header: list[str], rows: list[list[str]]) -> str:
+    """A table whose number columns are right-aligned, header included, and every other column left-aligned."""
+    right = [_numeric([str(row[k]) for row in rows if k < len(row)]) for k in range(len(header))]
+
+    def cell(tag: str, k: int, text: str) -> str:
+        return f"<{tag} class='{'n' if k < len(right) and right[k] else 't'}'>{_html_inline(text)}</{tag}>"
+
+    head = "".join(cell("th", k, h) for k, h in enumerate(header))
+    body = "".join("<tr>" + "".join(cell("td", k, str(c)) for k, c in enumerate(row)) + "</tr>" for row in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
 def to_html(blocks: list[Block], folder: Path) -> str:
     """Self-contained HTML (figures inline as base64 PNG)."""
     parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>case study</title><style>"
              "body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
              "table{border-collapse:collapse;font-size:0.85em;margin:1em 0}td,th{border:1px solid #bbb;"
-             "padding:2px 6px;text-align:right}td:first-child,td:nth-child(2){text-align:left}"
+             "padding:2px 6px}.n{text-align:right}.t{text-align:left}"
              "img{max-width:100%}figcaption{font-style:italic}</style></head><body>"]
     for bl in blocks:
         if bl.kind == "h":
@@ -93,9 +114,7 @@ def to_html(blocks: list[Block], folder: Path) -> str:
         elif bl.kind == "ul":
             parts.append("<ul>" + "".join(f"<li>{_html_inline(it)}</li>" for it in bl.items) + "</ul>")
         elif bl.kind == "table":
-            head = "".join(f"<th>{_html_inline(h)}</th>" for h in bl.header)
-            body = "".join("<tr>" + "".join(f"<td>{_html_inline(c)}</td>" for c in row) + "</tr>" for row in bl.rows)
-            parts.append(f"<table><tr>{head}</tr>{body}</table>")
+            parts.append(_table_html(list(bl.header), [list(row) for row in bl.rows]))
         elif bl.kind == "img":
             data = base64.b64encode((folder / bl.text).read_bytes()).decode()
             parts.append(f"<figure><img src='data:image/png;base64,{data}'><figcaption>"

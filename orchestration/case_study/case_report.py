@@ -83,7 +83,8 @@ def ground_reading(records: Mapping[str, RecordInfo]) -> str:
 def header_blocks(folder: Path, study: CaseStudyRecord) -> list[Block]:
     """Title and provenance."""
     prov = study.provenance
-    return [Block("h", f"Case study: {study.name}", level=1),
+    kind = "Controller benchmark" if study.config.get("benchmark") is not None else "Case study"
+    return [Block("h", f"{kind}: {study.name}", level=1),
             Block("p", f"Study folder `{folder.name}`, started {study.started or '?'}, finished "
                        f"{study.finished or '?'}; code commit `{prov.get('commit', '?')}`"
                        f"{' (working tree with uncommitted changes)' if prov.get('dirty') else ''}; coupling "
@@ -130,8 +131,10 @@ def gains_blocks(study: CaseStudyRecord) -> list[Block]:
         obj = proc.get("objective", {})
         extra = ", ".join(f"{k} {v:g}" for k, v in obj.items()
                           if k.startswith("w_") and k not in ("w_acc", "w_drift") and v)
+        tuned_on = proc.get("record", "?")
+        tuned_on = " and ".join(map(str, tuned_on)) if isinstance(tuned_on, list) else tuned_on
         blocks.append(Block("p", f"**{strategy}** gains (from `{study.gains_files.get(strategy, '?')}`, tuned on "
-                                 f"{proc.get('record', '?')}"
+                                 f"{tuned_on}"
                                  + (f" (first {proc['stop_time_s']:g} s)" if proc.get("stop_time_s") else "")
                                  + (f", objective with {extra}" if extra else "")
                                  + f", not per record): λ = {fmt(gg['lambda'], 4)} "
@@ -221,9 +224,8 @@ def gain_set_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
                    "with a release band (not in the paper) and tuned with terms on the shares of time at its "
                    "2.5 A limit and at 0 A so that the current varies as in the paper's Fig. 15 "
                    "(docs/case_study.md). Percentages: this strategy's peak against "
-                   f"{study.flags(study.uncontrolled).get('label')} ('off') and "
-                   f"{study.flags(passive[0]).get('label') if passive else 'no passive strategy'} ('on'); "
-                   "negative is lower. Indices as below."),
+                   f"{study.uncontrolled} ('vs off') and {passive[0] if passive else 'no passive strategy'} "
+                   "('vs on'); negative is lower. Indices as below."),
         Block("table", header=["record", "strategy", "a_3 m/s²", "vs off", "vs on", "max drift mm", "vs off",
                                "vs on", "x_base mm", "J1", "J2", "J5", "J8"], rows=rows),
         Block("h", "Current statistics (Fig. 15)", level=3),
@@ -425,12 +427,18 @@ def warning_blocks(study: CaseStudyRecord, metrics: Metrics) -> list[Block]:
             Block("ul", items=warn)]
 
 
-def figure_blocks(folder: Path, figures: dict[str, Path]) -> list[Block]:
-    """Every figure with its caption."""
-    return [Block("h", "Figures", level=2)] + [
-        Block("img", text=str(path.relative_to(folder)),
-              items=[CAPTIONS.get(name, f"Isolator force against displacement, {name.split('_', 1)[-1]}.")])
-        for name, path in figures.items()]
+def figure_blocks(folder: Path, figures: dict[str, Path], study: CaseStudyRecord) -> list[Block]:
+    """Every figure with its caption (a hysteresis figure's caption names its record as the scenario does)."""
+    from orchestration.case_study.case_figures import named
+
+    def caption(name: str) -> str:
+        record = name.removeprefix("hysteresis_")
+        if name not in CAPTIONS and record in study.records:
+            return f"Isolator force against base displacement, one panel per strategy: {named(study, record)}."
+        return CAPTIONS.get(name, name)
+
+    return [Block("h", "Figures", level=2)] + [Block("img", text=str(path.relative_to(folder)), items=[caption(name)])
+                                               for name, path in figures.items()]
 
 
 def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures: dict[str, Path],
@@ -444,7 +452,7 @@ def build_report(folder: Path, study: CaseStudyRecord, metrics: Metrics, figures
             *gains_blocks(study), *verdict_blocks(study, valid), *tables_blocks(study, metrics), *claims,
             *gain_set_blocks(study, valid), *sosm_condition_blocks(study, numbers or {}),
             *reference_blocks(study, metrics), *sweep_blocks(study), *warning_blocks(study, metrics),
-            *figure_blocks(folder, figures), *every_claim]
+            *figure_blocks(folder, figures, study), *every_claim]
 
 
 def write_outputs(folder: Path, study: CaseStudyRecord, files: FigureFiles = PNG_ONLY) -> CaseStudyRecord:

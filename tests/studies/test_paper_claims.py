@@ -87,3 +87,18 @@ def test_claims_are_checked_for_each_controlled_strategy():
     assert by_claim(checks, "the current varies", "a", "sosm-fig15").holds is True
     # the profile claims are made once per strategy, not once per controlled strategy
     assert len([c for c in checks if c.claim.startswith("inter-storey drift drops")]) == 3
+
+
+def test_the_html_tables_align_numbers_right_and_words_left(tmp_path):
+    """A column of numbers (with a unit or % at most, – for a missing one) is right-aligned, header included;
+    every other column left-aligned (the claims table's words had been pushed right)."""
+    import re
+
+    from orchestration.case_study.case_rendering import Block, to_html
+
+    html = to_html([Block("table", header=["claim", "record", "ratio", "change", "quantity"],
+                          rows=[["control reduces", "kobe", "0.171", "+3.5 %", "3.02 vs 17.7 m/s²"],
+                                ["drift drops", "elcentro", "–", "-12 %", "1.5 vs 2 mm"]])], tmp_path)
+    header = re.findall(r"<th class='(\w)'>", html)
+    assert header == ["t", "t", "n", "n", "t"]
+    assert re.findall(r"<td class='(\w)'>", html) == header * 2
