@@ -2273,6 +2273,51 @@ def stop43_cases(base: Path) -> list[Case]:
     return cases
 
 
+STOP45 = "45/"
+"""Prefix of these classes: ``--only 45/`` runs them alone."""
+
+
+def stop45_cases(base: Path) -> list[Case]:
+    """The inputs of class 45/: a strategy entry's flags (uncontrolled, radau_reference, paper_figures, style), the
+    uncontrolled case of a study, a suite benchmark and an IDA, a benchmark's j6_reference, and a study's
+    ``timeseries``."""
+    cases: list[Case] = []
+    study = [str(SC / "case_study.yaml"), "--set", "records={elcentro: elcentro.yaml}", "--set",
+             f"overrides=[{SHORT}]", "--set", "reference={enabled: false}", "--out", "out", "--quiet",
+             "--workers", "1"]
+    entry = "strategy_definitions={{mine: {{parameters: {{mode: passive, i_passive: 1.0}}, {flag}}}}}"
+    for flag in ("uncontrolled: 'yes'", "uncontrolled: 1", "uncontrolled: null", "radau_reference: 'true'",
+                 "radau_reference: [true]", "paper_figures: fig16", "paper_figures: ''", "paper_figures: 1",
+                 "style: {color: nope}", "style: {color: '#12345'}", "style: {color: 1}", "style: {line: '~'}",
+                 "style: {line: [1, 2, 3]}", "style: {line: [.nan, 1]}", "style: {line: [.inf, 1]}",
+                 "style: {line: [0, 1]}", "style: {line: [" + ", ".join(["1"] * 40) + "]}",
+                 "style: {marker: '$x$'}", "style: {marker: ../x}", "style: {bogus: 1}", "style: '../x'",
+                 "style: [1]", "bogus_flag: true"):
+        cases.append(Case(STOP45 + "strategy flags", flag[:70], "study.py",
+                          [*study, "--set", entry.format(flag=flag), "--set", "strategies=[passive-off, mine]"],
+                          verify=_exit_2))
+    mine = entry.format(flag="uncontrolled: true")
+    for strategies in ("[passive-on]", "[passive-off, mine]", "[mine, passive-off, passive-on]"):
+        cases.append(Case(STOP45 + "uncontrolled case", f"case study: {strategies}", "study.py",
+                          [*study, "--set", mine, "--set", f"strategies={strategies}"], verify=_exit_2))
+    radau = entry.format(flag="radau_reference: true").replace("mode: passive, i_passive: 1.0", "mode: sosm")
+    cases.append(Case(STOP45 + "strategy flags", "radau_reference on a controller", "study.py",
+                      [*study, "--set", radau, "--set", "strategies=[passive-off, mine]", "--set",
+                       "reference={enabled: true}"], verify=_exit_2))
+    bench = [str(SC / "controller_benchmark.yaml"), *study[1:]]
+    for value in ("passive-of", "'../x'", "1", "''", "[passive-on]"):
+        cases.append(Case(STOP45 + "benchmark", f"j6_reference: {value}", "study.py",
+                          [*bench, "--set", f"benchmark.j6_reference={value}"], verify=_exit_2))
+    suite = [str(SC / "controller_suite_benchmark.yaml"), "--out", "out", "--quiet", "--workers", "1"]
+    cases.append(Case(STOP45 + "uncontrolled case", "suite benchmark without one", "study.py",
+                      [*suite, "--set", "strategies=[passive-on, sosm]", "--set", "benchmark.tune=[sosm]"],
+                      verify=_exit_2))
+    for value in ("yes", "1", "null", "[true]", "'true'", ".nan", "{a: 1}"):
+        cases.append(Case(STOP45 + "study timeseries", f"timeseries: {value}", "study.py",
+                          [*study, "--set", f"timeseries={value}"], verify=_exit_2))
+    return cases
+
+
 def build_cases(seed: int, base: Path) -> list[Case]:
     global _PACKAGE_LONG
     from orchestration.engine_hooks import plan_scenario
@@ -2285,7 +2330,7 @@ def build_cases(seed: int, base: Path) -> list[Case]:
             *ssp_cases(rng, 40, package), *output_cases(), *fault_cases(), *other_tool_cases(),
             *engine_cases(base, package), *study_tool_cases(base), *new_unit_cases(), *session_input_cases(),
             *leftover_cases(base), *hardening_cases(base), *stop37_cases(base),
-            *stop42_cases(base), *stop43_cases(base)]
+            *stop42_cases(base), *stop43_cases(base), *stop45_cases(base)]
 
 
 def write_report(results: list[Result], report: Path, command: str, seconds: float) -> None:
