@@ -1386,7 +1386,8 @@ def run_case(case: Case, base: Path, index: int) -> Result:
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write beyond the limit fails with EFBIG
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
     before = _snapshot(work)
-    precious = {k: v for k, v in before.items() if v[2] and (k == PRECIOUS or k.startswith(("prev", "runs")))}
+    precious = {k: v for k, v in before.items() if v[2] and (k == PRECIOUS or k.startswith(("prev", "runs")))
+                and k not in case.changes}  # a file the case is meant to change (a resumed study.json) is not lost
     env = {**os.environ, "TMPDIR": str(tmp), "MRE_COSIM_CRASH_DIR": str(crash), "PYTHONDONTWRITEBYTECODE": "1",
            **case.env}
     cmd = [*TOOLS[case.tool], *case.argv]
@@ -2315,6 +2316,89 @@ def stop45_cases(base: Path) -> list[Case]:
     for value in ("yes", "1", "null", "[true]", "'true'", ".nan", "{a: 1}"):
         cases.append(Case(STOP45 + "study timeseries", f"timeseries: {value}", "study.py",
                           [*study, "--set", f"timeseries={value}"], verify=_exit_2))
+    cases += run_file_cases(base)
+    return cases
+
+
+def _run_file(name: str, write: Callable[[Path], None]) -> Callable[[Path], None]:
+    """Damage: the first run folder's ``name`` replaced by what ``write(path)`` makes there."""
+    def damage(folder: Path) -> None:
+        path = sorted((folder / "runs").iterdir())[0] / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
+        write(path)
+    return damage
+
+
+def _edit_numbers(change: Callable[[dict], Any]) -> Callable[[Path], None]:
+    def damage(folder: Path) -> None:
+        path = sorted((folder / "runs").iterdir())[0] / "metrics.json"
+        data = json.loads(path.read_text())
+        new = change(data)
+        path.write_text(json.dumps(data if new is None else new))
+    return damage
+
+
+def _parquet_with(columns: dict[str, Any]) -> Callable[[Path], None]:
+    def write(path: Path) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        pq.write_table(pa.table(columns), path)
+    return write
+
+
+def _says_file(name: str, code: int) -> Callable[[Path, list[int], str], list[str]]:
+    """Exit ``code`` with a message that names the damaged file; nothing left half-written in the study folder."""
+    def verify(work: Path, codes: list[int], err: str) -> list[str]:
+        reasons = [] if codes == [code] else [f"exit {codes}, expected {code}"]
+        reasons += [] if name in err else [f"the message does not name {name}"]
+        reasons += [f"{p} left behind" for p in (work / "prev").rglob(".*.tmp*")]
+        return reasons
+    return verify
+
+
+def run_file_cases(base: Path) -> list[Case]:
+    """A finished study folder whose run files (``metrics.json``, ``figure_series.parquet``) are not what the runs
+    wrote, for ``--report`` (exit 2, nothing written) and ``--resume`` (its runs and jobs kept; the report not
+    written: exit 1)."""
+    big = "{" + ", ".join(f'"k{k}": {k}' for k in range(120_000)) + "}"
+    damages = {
+        "metrics.json not JSON": _run_file("metrics.json", lambda p: p.write_text("{nope")),
+        "metrics.json empty": _run_file("metrics.json", lambda p: p.write_text("")),
+        "metrics.json random bytes": _run_file("metrics.json", lambda p: p.write_bytes(os.urandom(4096))),
+        "metrics.json a list": _edit_numbers(lambda d: [d]),
+        "metrics.json NaN literal": _run_file("metrics.json", lambda p: p.write_text('{"metrics": NaN}')),
+        "metrics.json metrics a list": _edit_numbers(lambda d: d.__setitem__("metrics", [1])),
+        "metrics.json a peak of text": _edit_numbers(lambda d: d["metrics"].__setitem__("acc_3", "x")),
+        "metrics.json a peak true": _edit_numbers(lambda d: d["metrics"].__setitem__("acc_3", True)),
+        "metrics.json a peak missing": _edit_numbers(lambda d: d["metrics"].pop("acc_3") and None),
+        "metrics.json criteria missing": _edit_numbers(lambda d: d.pop("criteria") and None),
+        "metrics.json 2 MiB": _run_file("metrics.json", lambda p: p.write_text(big + " " * (2 << 20))),
+        "metrics.json a folder": _run_file("metrics.json", lambda p: p.mkdir()),
+        "metrics.json a link to /dev/zero": _run_file("metrics.json", lambda p: p.symlink_to("/dev/zero")),
+        "figure_series.parquet random bytes": _run_file("figure_series.parquet",
+                                                        lambda p: p.write_bytes(os.urandom(5000))),
+        "figure_series.parquet JSON": _run_file("figure_series.parquet", lambda p: p.write_text("{}")),
+        "figure_series.parquet a folder": _run_file("figure_series.parquet", lambda p: p.mkdir()),
+        "figure_series.parquet without time": _run_file("figure_series.parquet", _parquet_with(
+            {"building.x_0": [0.0, 1.0]})),
+        "figure_series.parquet of text": _run_file("figure_series.parquet", _parquet_with(
+            {c: ["a", "b"] for c in ("time", "building.x_0", "isolator.F", "controller.i", "building.a_top")})),
+    }
+    cases = []
+    for name, damage in damages.items():
+        file = name.split(" ")[0]
+        cases.append(Case(STOP45 + "run files", f"--report, {name}", "study.py", ["--report", "prev"],
+                          _damaged("study", base, damage), out=None, timeout=180, verify=_says_file(file, 2)))
+    for name in ("metrics.json not JSON", "figure_series.parquet random bytes"):
+        cases.append(Case(STOP45 + "run files", f"--resume, {name}", "study.py",  # the fixture's code version: its
+                          ["--resume", "prev", "--quiet", "--workers", "1"],  # jobs are reused, nothing computed
+                          _damaged("study", base, damages[name]), out="prev", timeout=180,
+                          env={"MRE_COSIM_CODE_VERSION": "corpus"}, changes=("prev", "prev/study.json"),  # resumed
+                          verify=_says_file(name.split(" ")[0], 1)))
     return cases
 
 

@@ -122,12 +122,6 @@ class StrategyStyle(BaseModel):
             raise ValueError(f"marker must be one of {' '.join(MARKERS)}, got {value!r}")
         return value
 
-    def linestyle(self) -> Any:
-        """The line as matplotlib takes it (``None``: unset)."""
-        if isinstance(self.line, list):
-            return "-" if not self.line else (0, tuple(self.line))
-        return self.line
-
 
 class StrategyEntry(BaseModel):
     """One strategy as written in a strategy file (``fmu`` relative to that file).
@@ -442,9 +436,13 @@ def recorded_flags(recorded: dict[str, dict[str, Any]], name: str) -> dict[str, 
     return shipped.flags() if shipped is not None else {"label": name}
 
 
+def _uncontrolled(names: list[str], library: dict[str, Strategy]) -> list[str]:
+    return [n for n in names if n in library and library[n].entry.uncontrolled]
+
+
 def uncontrolled_of(names: list[str], library: dict[str, Strategy]) -> str | None:
     """The one strategy of ``names`` whose entry says ``uncontrolled: true`` (None: none, or several)."""
-    marked = [n for n in names if n in library and library[n].entry.uncontrolled]
+    marked = _uncontrolled(names, library)
     return marked[0] if len(marked) == 1 else None
 
 
@@ -452,7 +450,7 @@ def uncontrolled_problems(names: list[str], library: dict[str, Strategy], lines:
                           ) -> list[Problem]:
     """A located problem unless exactly one strategy of ``names`` (the study's list ``key``) is marked uncontrolled:
     the indices and criteria of a study are over its runs."""
-    marked = [n for n in names if n in library and library[n].entry.uncontrolled]
+    marked = _uncontrolled(names, library)
     if len(marked) == 1:
         return []
     file, line = lines.get(tuple(key.split(".")), (str(path), None))

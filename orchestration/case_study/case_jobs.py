@@ -17,12 +17,11 @@ import numpy as np
 
 from orchestration.batch.jobs import job_plan, run_folder
 from orchestration.building_studies.run_settings import RECORDED
-from orchestration.case_study.benchmark_criteria import FORCE_OFF
+from orchestration.case_study.benchmark_criteria import FORCE_OFF as FORCE_OFF_OUTPUT
 
 OUTPUTS_OVERRIDE = "outputs=[" + ", ".join(RECORDED) + "]"
 # A controller benchmark records the floors' velocities too (the input energy of its criterion J9).
 # And the isolator's force at 0 A along the same motion (J6), where the isolator FMU gives it (case_plan.plan_cosim).
-FORCE_OFF_OUTPUT = FORCE_OFF
 BENCHMARK_OUTPUTS_OVERRIDE = ("outputs=[" + ", ".join((*RECORDED, "building.v_1", "building.v_2", "building.v_3",
                                                        "ground.ag", FORCE_OFF_OUTPUT)) + "]")
 # The code that decides these jobs' numbers, besides the engine's (orchestration.batch.portable.job_key): every

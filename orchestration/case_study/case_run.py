@@ -71,6 +71,7 @@ from orchestration.case_study.case_records import (
 )
 from orchestration.case_study.case_report import read_study, write_outputs
 from orchestration.case_study.robustness_plan import VariantPlanner, variants
+from orchestration.case_study.run_numbers import RunFileError
 from orchestration.engine_hooks import require_kind
 from orchestration.figure_options import add_figure_arguments, figure_files
 from orchestration.master.errors import ScenarioError
@@ -444,7 +445,11 @@ def run_study(study: LoadedStudy, folder: Path, prepared: PreparedStudy, pool: B
     record.interrupted = interrupted
     write_json(folder / "study.json", record.to_json())
     bar.close()
-    write_outputs(folder, record, options.figures)
+    try:
+        write_outputs(folder, record, options.figures)
+    except RunFileError as exc:  # a resumed folder's run file damaged by hand: its runs and jobs/ are kept
+        print(f"error: the report could not be written: {exc}", file=sys.stderr)
+        return 1
     failed = [e.key for e in [*record.runs, *record.variant_runs, *record.half_step_runs] if not e.ok]
     failed += [k for k, v in {**record.sweep, **record.reference}.items() if not v.ok]
     print(f"study {'interrupted' if interrupted else 'done'}: {folder} ({len(failed)} failed)")
@@ -496,6 +501,9 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         try:
             write_outputs(args.report, data, args.figure_files)
+        except RunFileError as exc:  # a run's numbers or figure series edited or damaged: nothing was written
+            print(f"error: {exc}; nothing written", file=sys.stderr)
+            return 2
         except OSError as exc:
             print(f"error: cannot write the report into {args.report}: {exc.strerror or exc}"
                   f"{f' ({exc.filename})' if exc.filename else ''}", file=sys.stderr)

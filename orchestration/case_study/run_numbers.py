@@ -36,6 +36,8 @@ NUMBERS_FILE = "metrics.json"
 FIGURE_SERIES_FILE = "figure_series.parquet"
 FIGURE_ROWS = 40_000
 """Most rows of a run's figure series (every k-th step): enough for a figure several thousand pixels wide."""
+MAX_NUMBERS_BYTES = 1 << 20
+"""Largest ``metrics.json`` a report reads [bytes]: a run's is about 2 KB."""
 TOP_FLOOR = "building.a_top"  # the figure series' name of the top floor's absolute acceleration [m/s^2]
 DEVICE_CURRENT = "coil.i"  # a plant's coil lag output: the device current [A], drawn beside the command
 
@@ -171,33 +173,96 @@ def numbers_json(numbers: dict[str, Any]) -> str:
     return json.dumps(_strict(doc), indent=1, allow_nan=False) + "\n"
 
 
+class RunFileError(ValueError):
+    """A run folder's file that is not what a study's run wrote (it names the file and what is wrong)."""
+
+
+def _regular(path: Path) -> bool:
+    """Whether ``path`` is there; RunFileError if it is, but is not a regular file (a folder, a device, a link to
+    one)."""
+    from orchestration.tool_files import input_problem
+
+    if not (path.exists() or path.is_symlink()):
+        return False
+    problem = input_problem(path)
+    if problem:
+        raise RunFileError(f"{problem}: not a run's {path.name}")
+    return True
+
+
+def _required(part: str) -> tuple[str, ...]:
+    """The names every run writes in a part of ``metrics.json`` (what the tables and the report read)."""
+    from orchestration.building_studies.run_metrics import PEAK_COLUMNS
+    from orchestration.case_study.benchmark_criteria import CRITERIA, EFFORT
+
+    if part == "metrics":
+        return (*PEAK_COLUMNS[2:], "current_min_A", "structure_shear_N", "rms_x_base_mm", "rms_acc_max",
+                "drift_max_mm", "acc_max", "time_beyond_8mm_s", "time_beyond_15mm_s", "duration_s",
+                "time_current_outside_paper_range_s", "current_limit_A", "current_share_at_limit",
+                "current_share_at_zero", "current_share_at_range_top")
+    return (*CRITERIA, *EFFORT) if part == "criteria" else ()
+
+
+def _numbers_part(path: Path, doc: dict[str, Any], part: str, optional: bool = False) -> dict[str, Any] | None:
+    """One part of ``metrics.json`` checked: a mapping of names to numbers (null for a non-finite one; Booleans in
+    ``sosm_conditions``) with every name a run writes; None for an optional part that is null."""
+    value = doc.get(part)
+    if value is None and optional:
+        return None
+    if not isinstance(value, dict):
+        raise RunFileError(f"{path}: '{part}' is not a mapping of numbers: not a run's {NUMBERS_FILE}")
+    flags = part == "sosm_conditions"
+    for k, v in value.items():
+        if v is not None and not (isinstance(v, int | float) and (flags or not isinstance(v, bool))):
+            raise RunFileError(f"{path}: {part}.{k} = {v!r} is not a number: not a run's {NUMBERS_FILE}")
+    missing = [k for k in _required(part) if k not in value]
+    if missing:
+        raise RunFileError(f"{path}: {part} has no {', '.join(missing[:5])}: not a run's {NUMBERS_FILE}")
+    return _floats(value)
+
+
 def read_numbers(run_folder: Path, inputs: NumberInputs, energy: dict[str, Any] | None) -> dict[str, Any] | None:
     """A run's numbers: its ``metrics.json``, or (a folder written before runs kept them) computed from its
-    ``timeseries.csv`` with ``inputs``; None if it has neither."""
+    ``timeseries.csv`` with ``inputs``; None if it has neither. RunFileError (naming the file) for a file that is
+    not what a run wrote: not JSON, not numbers, larger than :data:`MAX_NUMBERS_BYTES`, not a regular file."""
     path = run_folder / NUMBERS_FILE
-    if path.is_file():
-        doc = json.loads(path.read_text())
-        out = {"rows": doc.get("rows"), "metrics": _floats(doc.get("metrics") or {}),
-               "criteria": _floats(doc.get("criteria") or {}), "sosm_conditions": doc.get("sosm_conditions")}
-        if out["sosm_conditions"] is not None:
-            out["sosm_conditions"] = _floats(out["sosm_conditions"])
-        return out
+    if _regular(path):
+        if path.stat().st_size > MAX_NUMBERS_BYTES:
+            raise RunFileError(f"{path}: larger than {MAX_NUMBERS_BYTES >> 20} MiB: not a run's {NUMBERS_FILE}")
+        try:
+            doc = json.loads(path.read_text())
+        except (ValueError, OSError) as exc:
+            raise RunFileError(f"{path}: not JSON ({str(exc)[:120]}): not a run's {NUMBERS_FILE}") from None
+        if not isinstance(doc, dict):
+            raise RunFileError(f"{path}: a JSON {type(doc).__name__}, not an object: not a run's {NUMBERS_FILE}")
+        return {"rows": doc.get("rows"), "metrics": _numbers_part(path, doc, "metrics"),
+                "criteria": _numbers_part(path, doc, "criteria"),
+                "sosm_conditions": _numbers_part(path, doc, "sosm_conditions", optional=True)}
     from orchestration.building_studies.run_metrics import read_timeseries
 
     csv_file = run_folder / "timeseries.csv"
-    if not csv_file.is_file():
+    if not _regular(csv_file):
         return None
     return run_numbers(read_timeseries(csv_file), energy, inputs)
 
 
 def read_figure_series(run_folder: Path) -> dict[str, np.ndarray] | None:
     """The series a run's figures draw (:func:`figure_columns`): its figure series, else its results file (every
-    step it kept); None if it has none."""
-    from orchestration.building_studies.run_metrics import read_timeseries
+    step it kept); None if it has none. RunFileError (naming the file) for one that is not a table of numbers with
+    the columns the figures draw."""
+    from orchestration.building_studies.run_metrics import CURRENT, read_timeseries
 
     for name in (FIGURE_SERIES_FILE, "timeseries.parquet", "timeseries.csv"):
         path = run_folder / name
-        if path.is_file():
-            series = read_timeseries(path)
-            return series if name == FIGURE_SERIES_FILE else figure_columns(series)
+        if _regular(path):
+            try:
+                series = read_timeseries(path)
+                drawn = series if name == FIGURE_SERIES_FILE else figure_columns(series)
+                missing = [c for c in ("time", "building.x_0", "isolator.F", CURRENT, TOP_FLOOR) if c not in drawn]
+                if missing:
+                    raise KeyError(f"no column {', '.join(missing)}")
+                return drawn
+            except Exception as exc:  # pyarrow's and numpy's errors for a file that is not what its name says
+                raise RunFileError(f"{path}: not a run's {name} ({type(exc).__name__}: "
+                                   f"{str(exc).splitlines()[0][:160] if str(exc) else ''})") from None
     return None

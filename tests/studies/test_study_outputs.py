@@ -188,3 +188,24 @@ def test_numbers_round_trip_through_strict_json_with_nan_as_null(tmp_path):
     assert back["metrics"]["x_base_mm"] == pytest.approx(4.0, rel=1e-6)  # the hand value: 4 mm amplitude
     assert back["metrics"]["current_share_at_limit"] == pytest.approx(np.mean(series["controller.i"] >= 3 - 1e-6))
     assert read_numbers(tmp_path / "nothing", NumberInputs(MASSES, 3.0, (0.0, 2.5)), None) is None
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ("{nope", "not JSON"), ("[1]", "a JSON list"), ('{"metrics": [1], "criteria": {}}', "'metrics' is not a mapping"),
+    ('{"metrics": {"acc_3": "x"}, "criteria": {}}', "metrics.acc_3 = 'x' is not a number"),
+    ('{"metrics": {"acc_3": true}, "criteria": {}}', "metrics.acc_3 = True is not a number"),
+    ('{"metrics": {"acc_3": 1.0}, "criteria": {}}', "metrics has no x_base_mm"),
+])
+def test_a_damaged_metrics_file_is_named_not_read(tmp_path, text, says):
+    """A run's metrics.json that is not what a run wrote: RunFileError naming the file (study.py --report: exit 2,
+    nothing written; reliability corpus class 45/run files)."""
+    from orchestration.case_study.run_numbers import RunFileError
+
+    (tmp_path / NUMBERS_FILE).write_text(text)
+    with pytest.raises(RunFileError) as err:
+        read_numbers(tmp_path, NumberInputs(MASSES, 3.0, (0.0, 2.5)), None)
+    assert says in str(err.value) and str(tmp_path / NUMBERS_FILE) in str(err.value)
+    (tmp_path / NUMBERS_FILE).unlink()
+    (tmp_path / NUMBERS_FILE).mkdir()
+    with pytest.raises(RunFileError, match="is a folder"):
+        read_numbers(tmp_path, NumberInputs(MASSES, 3.0, (0.0, 2.5)), None)
